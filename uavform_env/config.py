@@ -1,0 +1,281 @@
+"""Frozen, self-validating configuration of the environment.
+
+Defaults follow Appendix A of the algorithm spec. Every dataclass checks its fields on
+construction and raises ``ValueError`` naming the field, the value and the allowed range, so a bad
+configuration fails where it is written, not deep inside a numba kernel.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, replace
+from typing import Any
+
+FORMATION_SHAPES = ("wedge", "diamond", "triangle", "line", "column")
+PRIOR_MAPS = ("none", "heightmap")
+
+
+def _check_range(owner: str, name: str, value: Any, lo: float | None = None, hi: float | None = None,
+                 lo_open: bool = False, hi_open: bool = False) -> None:
+    """Raise a ValueError naming ``owner.name`` unless ``value`` is a finite number inside the range."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError(f"{owner}.{name}={value!r}: expected a finite number")
+    below = lo is not None and (value <= lo if lo_open else value < lo)
+    above = hi is not None and (value >= hi if hi_open else value > hi)
+    if below or above:
+        left = "(" if lo_open else "["
+        right = ")" if hi_open else "]"
+        lo_s = "-inf" if lo is None else f"{lo:g}"
+        hi_s = "inf" if hi is None else f"{hi:g}"
+        raise ValueError(f"{owner}.{name}={value!r} is out of range; allowed {left}{lo_s}, {hi_s}{right}")
+
+
+def _check_int(owner: str, name: str, value: Any, lo: int, hi: int | None = None) -> None:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ValueError(f"{owner}.{name}={value!r}: expected an integer")
+    _check_range(owner, name, value, lo, hi)
+
+
+def _check_choice(owner: str, name: str, value: Any, choices: tuple) -> None:
+    if value not in choices:
+        raise ValueError(f"{owner}.{name}={value!r}: expected one of {list(choices)}")
+
+
+class _Config:
+    """Shared helpers of the config dataclasses: dict round-trip and validated copies."""
+
+    def to_dict(self) -> dict:
+        out = {}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            out[f.name] = v.to_dict() if isinstance(v, _Config) else (list(v) if isinstance(v, tuple) else v)
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict):
+        known = {f.name: f for f in fields(cls)}
+        unknown = sorted(set(data) - set(known))
+        if unknown:
+            raise ValueError(f"{cls.__name__}: unknown field(s) {unknown}; allowed {sorted(known)}")
+        kwargs = {}
+        for name, value in data.items():
+            default = getattr(cls(), name) if name in known else None
+            if isinstance(default, _Config):
+                value = type(default).from_dict(value)
+            elif isinstance(default, tuple):
+                value = tuple(value)
+            kwargs[name] = value
+        return cls(**kwargs)
+
+    def replace(self, **changes):
+        return replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class UAVLimits(_Config):
+    """Kinematic limits of one UAV (spec (a)); the planners' model uses exactly these."""
+
+    dt: float = 0.1
+    v_min: float = 0.0
+    v_max: float = 1.0
+    w_max: float = math.radians(20.0)
+    a_max: float = 0.2
+    dw_max: float = math.radians(50.0)
+    vz_max: float = 0.5
+    az_max: float = 0.5
+    gamma_max: float = math.radians(45.0)
+    r_uav: float = 0.3
+    r_safe: float = 0.2
+    z_min: float = 0.5
+    z_max: float = 10.0
+
+    def __post_init__(self):
+        o = "UAVLimits"
+        _check_range(o, "dt", self.dt, 0.0, 1.0, lo_open=True)
+        _check_range(o, "v_min", self.v_min, 0.0, None)
+        _check_range(o, "v_max", self.v_max, self.v_min, 50.0, lo_open=True)
+        _check_range(o, "w_max", self.w_max, 0.0, 2 * math.pi, lo_open=True)
+        _check_range(o, "a_max", self.a_max, 0.0, 100.0, lo_open=True)
+        _check_range(o, "dw_max", self.dw_max, 0.0, 100.0, lo_open=True)
+        _check_range(o, "vz_max", self.vz_max, 0.0, 20.0)
+        _check_range(o, "az_max", self.az_max, 0.0, 100.0)
+        _check_range(o, "gamma_max", self.gamma_max, 0.0, math.pi / 2)
+        _check_range(o, "r_uav", self.r_uav, 0.0, 10.0, lo_open=True)
+        _check_range(o, "r_safe", self.r_safe, 0.0, 10.0)
+        _check_range(o, "z_min", self.z_min, 0.0, None)
+        _check_range(o, "z_max", self.z_max, self.z_min, None, lo_open=True)
+
+    def climb_angle_limit(self, v: float) -> float:
+        """e_max(v) = min(gamma_max, atan2(vz_max, max(v, 1e-3))) (spec (a))."""
+        return min(self.gamma_max, math.atan2(self.vz_max, max(v, 1e-3)))
+
+
+@dataclass(frozen=True)
+class SensorConfig(_Config):
+    """Simulated range sensor: an azimuth x elevation grid of rays (spec (e2), simplified sensor).
+
+    ``interleave`` rotates the azimuth pattern by a fraction of one ray spacing every step (golden
+    ratio sequence), so a coarse, fast pattern still covers every direction within a few steps.
+    """
+
+    n_azimuth: int = 40
+    n_elevation: int = 9
+    elevation_min: float = math.radians(-40.0)
+    elevation_max: float = math.radians(40.0)
+    r_max: float = 8.0
+    noise_std: float = 0.0
+    interleave: bool = True
+
+    def __post_init__(self):
+        o = "SensorConfig"
+        _check_int(o, "n_azimuth", self.n_azimuth, 1, 3600)
+        _check_int(o, "n_elevation", self.n_elevation, 1, 1800)
+        _check_range(o, "elevation_min", self.elevation_min, -math.pi / 2, math.pi / 2)
+        _check_range(o, "elevation_max", self.elevation_max, self.elevation_min, math.pi / 2)
+        _check_range(o, "r_max", self.r_max, 0.0, 100.0, lo_open=True)
+        _check_range(o, "noise_std", self.noise_std, 0.0, 10.0)
+
+    @property
+    def n_rays(self) -> int:
+        return self.n_azimuth * self.n_elevation
+
+
+@dataclass(frozen=True)
+class MapConfig(_Config):
+    """Onboard occupancy map with OctoMap's sensor model (spec (e1))."""
+
+    resolution: float = 0.2
+    p_hit: float = 0.7
+    p_miss: float = 0.4
+    p_min: float = 0.1192
+    p_max: float = 0.971
+    p_occ: float = 0.5
+
+    def __post_init__(self):
+        o = "MapConfig"
+        _check_range(o, "resolution", self.resolution, 0.01, 5.0)
+        _check_range(o, "p_hit", self.p_hit, 0.5, 1.0, lo_open=True, hi_open=True)
+        _check_range(o, "p_miss", self.p_miss, 0.0, 0.5, lo_open=True, hi_open=True)
+        _check_range(o, "p_min", self.p_min, 0.0, 0.5, lo_open=True, hi_open=True)
+        _check_range(o, "p_max", self.p_max, 0.5, 1.0, lo_open=True, hi_open=True)
+        _check_range(o, "p_occ", self.p_occ, self.p_min, self.p_max, lo_open=True, hi_open=True)
+
+    @staticmethod
+    def logodds(p: float) -> float:
+        return math.log(p / (1.0 - p))
+
+
+@dataclass(frozen=True)
+class FormationConfig(_Config):
+    """Formation geometry (spec (g1)): shape, spacing, reference altitude and closing tolerance."""
+
+    shape: str = "wedge"
+    spacing: float = 2.0
+    z_ref: float = 3.0
+    e_f: float = 0.5
+
+    def __post_init__(self):
+        o = "FormationConfig"
+        _check_choice(o, "shape", self.shape, FORMATION_SHAPES)
+        _check_range(o, "spacing", self.spacing, 0.0, 100.0, lo_open=True)
+        _check_range(o, "z_ref", self.z_ref, 0.0, None)
+        _check_range(o, "e_f", self.e_f, 0.0, 100.0, lo_open=True)
+
+
+@dataclass(frozen=True)
+class RewardConfig(_Config):
+    """Weights of the per-agent reward terms (see README, "Rewards")."""
+
+    progress: float = 1.0
+    formation: float = 0.05
+    collision: float = 10.0
+    smoothness: float = 0.01
+    success: float = 10.0
+    time: float = 0.01
+
+    def __post_init__(self):
+        for f in fields(self):
+            _check_range("RewardConfig", f.name, getattr(self, f.name), 0.0, None)
+
+
+@dataclass(frozen=True)
+class ObservationConfig(_Config):
+    """What each agent's observation vector contains (see README, "Observations")."""
+
+    k_neighbours: int = 4
+    neighbour_range: float = 20.0
+    target_clip: float = 50.0
+    include_histogram: bool = True
+    histogram_cell_deg: float = 15.0
+    histogram_radius: float = 5.0
+    include_crop: bool = False
+    crop_level: int = 2
+    crop_cells: int = 8
+    crop_cells_z: int = 4
+
+    def __post_init__(self):
+        o = "ObservationConfig"
+        _check_int(o, "k_neighbours", self.k_neighbours, 0, 64)
+        _check_range(o, "neighbour_range", self.neighbour_range, 0.0, None, lo_open=True)
+        _check_range(o, "target_clip", self.target_clip, 0.0, None, lo_open=True)
+        _check_range(o, "histogram_cell_deg", self.histogram_cell_deg, 1.0, 90.0)
+        if abs(360.0 / self.histogram_cell_deg - round(360.0 / self.histogram_cell_deg)) > 1e-9 or \
+                abs(180.0 / self.histogram_cell_deg - round(180.0 / self.histogram_cell_deg)) > 1e-9:
+            raise ValueError(f"ObservationConfig.histogram_cell_deg={self.histogram_cell_deg!r}: "
+                             "expected a divisor of 180 degrees (e.g. 5, 10, 15, 30)")
+        _check_range(o, "histogram_radius", self.histogram_radius, 0.0, 50.0, lo_open=True)
+        _check_int(o, "crop_level", self.crop_level, 0, 8)
+        _check_int(o, "crop_cells", self.crop_cells, 1, 64)
+        _check_int(o, "crop_cells_z", self.crop_cells_z, 1, 64)
+
+
+@dataclass(frozen=True)
+class EpisodeConfig(_Config):
+    """Episode rules: length, goal radius, crash handling, prior knowledge and disturbances."""
+
+    max_cycles: int = 1500
+    r_goal: float = 0.5
+    remove_crashed: bool = False
+    prior_map: str = "none"
+    prior_resolution: float = 0.5
+    wind_std: float = 0.0
+    wind_tau: float = 2.0
+
+    def __post_init__(self):
+        o = "EpisodeConfig"
+        _check_int(o, "max_cycles", self.max_cycles, 1)
+        _check_range(o, "r_goal", self.r_goal, 0.0, None, lo_open=True)
+        if not isinstance(self.remove_crashed, bool):
+            raise ValueError(f"{o}.remove_crashed={self.remove_crashed!r}: expected a bool")
+        _check_choice(o, "prior_map", self.prior_map, PRIOR_MAPS)
+        _check_range(o, "prior_resolution", self.prior_resolution, 0.05, 10.0)
+        _check_range(o, "wind_std", self.wind_std, 0.0, 10.0)
+        _check_range(o, "wind_tau", self.wind_tau, 0.0, None, lo_open=True)
+
+
+@dataclass(frozen=True)
+class EnvConfig(_Config):
+    """Everything the environment needs besides the scenario."""
+
+    uav: UAVLimits = field(default_factory=UAVLimits)
+    sensor: SensorConfig = field(default_factory=SensorConfig)
+    map: MapConfig = field(default_factory=MapConfig)
+    formation: FormationConfig = field(default_factory=FormationConfig)
+    reward: RewardConfig = field(default_factory=RewardConfig)
+    observation: ObservationConfig = field(default_factory=ObservationConfig)
+    episode: EpisodeConfig = field(default_factory=EpisodeConfig)
+
+    def __post_init__(self):
+        expected = {"uav": UAVLimits, "sensor": SensorConfig, "map": MapConfig,
+                    "formation": FormationConfig, "reward": RewardConfig,
+                    "observation": ObservationConfig, "episode": EpisodeConfig}
+        for name, cls in expected.items():
+            if not isinstance(getattr(self, name), cls):
+                raise ValueError(f"EnvConfig.{name}: expected a {cls.__name__}, got {type(getattr(self, name)).__name__}")
+        min_spacing = 2.0 * self.uav.r_uav
+        if self.formation.spacing <= min_spacing:
+            raise ValueError(f"FormationConfig.spacing={self.formation.spacing!r} must exceed two UAV radii "
+                             f"(2 * UAVLimits.r_uav = {min_spacing:g})")
+        if not self.uav.z_min <= self.formation.z_ref <= self.uav.z_max:
+            raise ValueError(f"FormationConfig.z_ref={self.formation.z_ref!r} must lie in the altitude band "
+                             f"[{self.uav.z_min:g}, {self.uav.z_max:g}] of UAVLimits")
