@@ -1,0 +1,1 @@
+"""Residual reinforcement learning on the fusion expert's evaluation weights."""

@@ -1,0 +1,88 @@
+"""Kinematic UAV model of spec (a): planar unicycle plus an independent vertical channel.
+
+The same ``integrate`` kernel advances the simulator and the planners' rollouts (one source of
+truth for the model). Commands pass through rate and acceleration limits first, so a planner that
+samples inside the dynamic window reproduces the simulated motion exactly.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from .config import UAVLimits
+
+# Column indices of a state row (x, y, z, psi, v, w, vz).
+X, Y, Z, PSI, V, W, VZ = range(7)
+STATE_DIM = 7
+
+
+@numba.njit(cache=True, inline="always")
+def wrap(a):
+    """Map an angle to (-pi, pi]."""
+    two_pi = 2.0 * math.pi
+    a = (a + math.pi) - two_pi * math.floor((a + math.pi) / two_pi)
+    if a <= 0.0:
+        a += two_pi
+    return a - math.pi
+
+
+@numba.njit(cache=True, inline="always")
+def integrate(x, y, z, psi, v, w, vz, dt):
+    """One 'yaw first' Euler step with the commands (v, w, vz) held constant (spec (a))."""
+    psi_n = wrap(psi + w * dt)
+    return x + v * math.cos(psi_n) * dt, y + v * math.sin(psi_n) * dt, z + vz * dt, psi_n
+
+
+def actions_to_commands(actions: np.ndarray, limits: UAVLimits) -> np.ndarray:
+    """Map actions in [-1, 1]^3 linearly to (v_c, w_c, vz_c) within the limits."""
+    a = np.clip(np.asarray(actions, dtype=np.float64), -1.0, 1.0)
+    cmd = np.empty_like(a)
+    cmd[..., 0] = limits.v_min + 0.5 * (a[..., 0] + 1.0) * (limits.v_max - limits.v_min)
+    cmd[..., 1] = a[..., 1] * limits.w_max
+    cmd[..., 2] = a[..., 2] * limits.vz_max
+    return cmd
+
+
+def commands_to_actions(commands: np.ndarray, limits: UAVLimits) -> np.ndarray:
+    """Inverse of ``actions_to_commands`` (for scripted policies that plan in command space)."""
+    c = np.asarray(commands, dtype=np.float64)
+    a = np.empty_like(c)
+    span = limits.v_max - limits.v_min
+    a[..., 0] = 2.0 * (c[..., 0] - limits.v_min) / span - 1.0
+    a[..., 1] = c[..., 1] / limits.w_max
+    a[..., 2] = c[..., 2] / limits.vz_max if limits.vz_max > 0 else 0.0
+    return np.clip(a, -1.0, 1.0).astype(np.float32)
+
+
+@numba.njit(cache=True)
+def _step_kernel(states, commands, active, dt, v_min, v_max, w_max, a_max, dw_max, vz_max, az_max, z_min, z_max):
+    for i in range(states.shape[0]):
+        if not active[i]:
+            states[i, V] = 0.0
+            states[i, W] = 0.0
+            states[i, VZ] = 0.0
+            continue
+        v0, w0, vz0 = states[i, V], states[i, W], states[i, VZ]
+        v = min(max(commands[i, 0], v0 - a_max * dt, v_min), v0 + a_max * dt, v_max)
+        w = min(max(commands[i, 1], w0 - dw_max * dt, -w_max), w0 + dw_max * dt, w_max)
+        vz = min(max(commands[i, 2], vz0 - az_max * dt, -vz_max), vz0 + az_max * dt, vz_max)
+        x, y, z, psi = integrate(states[i, X], states[i, Y], states[i, Z], states[i, PSI], v, w, vz, dt)
+        if z < z_min or z > z_max:
+            z = min(max(z, z_min), z_max)
+            vz = 0.0
+        states[i, X], states[i, Y], states[i, Z], states[i, PSI] = x, y, z, psi
+        states[i, V], states[i, W], states[i, VZ] = v, w, vz
+
+
+def step(states: np.ndarray, commands: np.ndarray, active: np.ndarray, limits: UAVLimits) -> None:
+    """Advance all UAVs one step in place; inactive (crashed) UAVs stay frozen with zero rates.
+
+    Commands are first limited to the dynamic window (acceleration) and to the velocity limits,
+    then integrated; the altitude is kept inside [z_min, z_max].
+    """
+    _step_kernel(states, np.ascontiguousarray(commands, dtype=np.float64), active, limits.dt,
+                 limits.v_min, limits.v_max, limits.w_max, limits.a_max, limits.dw_max,
+                 limits.vz_max, limits.az_max, limits.z_min, limits.z_max)

@@ -1,0 +1,56 @@
+"""Formation geometry of spec (g1): slot offsets in the leader's body frame and formation error.
+
+wedge, line and column extend to any N (one more pair per rank); diamond holds at most 4 UAVs and
+triangle at most 3, as in the spec's table.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .config import FORMATION_SHAPES
+
+MAX_UAVS = {"wedge": None, "diamond": 4, "triangle": 3, "line": None, "column": None}
+
+
+def slot_offsets(shape: str, n_uavs: int, spacing: float) -> np.ndarray:
+    """Offsets (n, 3) of every UAV's slot in the leader's body frame (x fwd, y left, z up); row 0 is the leader."""
+    if shape not in FORMATION_SHAPES:
+        raise ValueError(f"formation shape {shape!r}: expected one of {list(FORMATION_SHAPES)}")
+    if isinstance(n_uavs, bool) or not isinstance(n_uavs, (int, np.integer)) or n_uavs < 1:
+        raise ValueError(f"n_uavs={n_uavs!r}: expected an integer >= 1")
+    cap = MAX_UAVS[shape]
+    if cap is not None and n_uavs > cap:
+        raise ValueError(f"n_uavs={n_uavs} is too many for formation {shape!r}, which holds at most {cap} UAVs")
+    if not spacing > 0:
+        raise ValueError(f"spacing={spacing!r}: expected a positive number")
+    s = float(spacing)
+    out = np.zeros((n_uavs, 3))
+    for j in range(1, n_uavs):
+        rank, side = (j + 1) // 2, (1.0 if j % 2 else -1.0)
+        if shape == "wedge":
+            out[j, :2] = (-rank * s, side * rank * s)
+        elif shape == "line":
+            out[j, :2] = (0.0, side * rank * s)
+        elif shape == "column":
+            out[j, :2] = (-j * s, 0.0)
+        elif shape == "triangle":
+            out[j, :2] = (-s, side * s)
+        else:  # diamond: two flanks, then the tail
+            out[j, :2] = (-s, side * s) if j < 3 else (-2 * s, 0.0)
+    return out
+
+
+def slot_positions(leader_xy: np.ndarray, leader_yaw: float, offsets: np.ndarray, z_ref: float) -> np.ndarray:
+    """World positions (n, 3) of the slots: p_L + R_z(psi_L) [dx, dy], at altitude z_ref + dz."""
+    c, s = np.cos(leader_yaw), np.sin(leader_yaw)
+    out = np.empty((offsets.shape[0], 3))
+    out[:, 0] = leader_xy[0] + c * offsets[:, 0] - s * offsets[:, 1]
+    out[:, 1] = leader_xy[1] + s * offsets[:, 0] + c * offsets[:, 1]
+    out[:, 2] = z_ref + offsets[:, 2]
+    return out
+
+
+def formation_errors(positions: np.ndarray, slots: np.ndarray) -> np.ndarray:
+    """3D distance of every UAV to its slot (the leader's entry is 0 by construction of its slot)."""
+    return np.linalg.norm(positions - slots, axis=1)
