@@ -1,0 +1,382 @@
+"""FormationEnv: the PettingZoo ParallelEnv of N UAVs flying a formation through a 3D obstacle field.
+
+The class is glue: every stage of a step (dynamics, collisions, sensing, maps, observations,
+rewards) is an array function of its own module, called here in the order of
+docs/architecture: validate -> commands -> dynamics -> collisions -> sensing -> maps ->
+observations -> rewards, endings and infos.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from gymnasium import spaces
+from pettingzoo import ParallelEnv
+
+from . import dynamics
+from .config import EnvConfig
+from .dynamics import PSI, STATE_DIM, V, VZ, W
+from .formation import formation_errors, slot_offsets, slot_positions
+from .observations import ObservationLayout, build_observations
+from .occupancy import OccupancyMap
+from .onboard import OnboardView, PriorMap
+from .rewards import compute_rewards
+from .scenarios import Scenario, load_scenario, make_scenario, validate_scenario
+from .sensing import RangeSensor
+
+INFO_KEYS = ("clearance", "separation", "formation_error", "target_distance", "goal_distance", "speed",
+             "altitude", "crashed", "success", "step", "TimeLimit.truncated")
+
+
+class FormationEnv(ParallelEnv):
+    """N UAVs (``uav_0`` is the leader) fly from the scenario's start to its goal in formation.
+
+    Args:
+        scenario: a registered scenario name (``uavform_env.scenarios.list_scenarios()``), a path to a
+            scenario TOML file, or a ``Scenario``.
+        n_uavs, formation, spacing, difficulty: override the scenario's mission.
+        max_cycles: episode length in steps (overrides ``config.episode.max_cycles``).
+        render_mode: ``None``, ``"rgb_array"`` (headless) or ``"human"``.
+        remove_crashed: remove crashed UAVs from ``agents`` instead of freezing them.
+        config: an ``EnvConfig``; its fields are documented in ``uavform_env.config``.
+        layout_seed: fix the obstacle layout of a generated scenario (default: the reset seed).
+        top_down: render the top view instead of the 3D view.
+    """
+
+    metadata = {"name": "formation_v0", "render_modes": ["human", "rgb_array"], "render_fps": 10,
+                "is_parallelizable": True}
+
+    def __init__(self, scenario: str | Path | Scenario = "forest", n_uavs: int | None = None,
+                 formation: str | None = None, spacing: float | None = None, difficulty: str | None = None,
+                 max_cycles: int | None = None, render_mode: str | None = None, remove_crashed: bool | None = None,
+                 config: EnvConfig | None = None, layout_seed: int | None = None, top_down: bool = False):
+        cfg = config if config is not None else EnvConfig()
+        if not isinstance(cfg, EnvConfig):
+            raise ValueError(f"config: expected an EnvConfig, got {type(cfg).__name__}")
+        if max_cycles is not None or remove_crashed is not None:
+            cfg = cfg.replace(episode=cfg.episode.replace(
+                **({"max_cycles": max_cycles} if max_cycles is not None else {}),
+                **({"remove_crashed": remove_crashed} if remove_crashed is not None else {})))
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode={render_mode!r}: expected None or one of {self.metadata['render_modes']}")
+        self.render_mode = render_mode
+        self.top_down = bool(top_down)
+        self.layout_seed = layout_seed
+        self._overrides = {k: v for k, v in (("n_uavs", n_uavs), ("formation", formation), ("spacing", spacing))
+                           if v is not None}
+        self._difficulty = difficulty
+        self._fixed_scenario, self._scenario_name = self._resolve_scenario(scenario)
+        first = self._scenario_for(0)
+        mission = first.mission
+        cfg = cfg.replace(formation=cfg.formation.replace(shape=mission.formation, spacing=mission.spacing))
+        self.config = cfg
+        self.max_cycles = cfg.episode.max_cycles
+        self.n_uavs = mission.n_uavs
+        self.offsets = slot_offsets(mission.formation, mission.n_uavs, mission.spacing)
+
+        self.possible_agents = [f"uav_{i}" for i in range(self.n_uavs)]
+        self.agent_name_mapping = {a: i for i, a in enumerate(self.possible_agents)}
+        self.layout = ObservationLayout(cfg)
+        obs_space = self.layout.space()
+        act_space = spaces.Box(-1.0, 1.0, (3,), np.float32)
+        self.observation_spaces = {a: obs_space for a in self.possible_agents}
+        self.action_spaces = {a: act_space for a in self.possible_agents}
+        self.state_space = spaces.Box(-1.0, 1.0, (9 * self.n_uavs + 3,), np.float32)
+        self.sensor = RangeSensor(cfg.sensor)
+        self.agents: list[str] = []
+        self.scenario: Scenario | None = None
+        self.world = None
+        self._renderer = None
+
+    # ------------------------------------------------------------------ spaces
+    def observation_space(self, agent):
+        return self.observation_spaces[agent]
+
+    def action_space(self, agent):
+        return self.action_spaces[agent]
+
+    # ------------------------------------------------------------------ scenario handling
+    def _resolve_scenario(self, scenario):
+        if isinstance(scenario, Scenario):
+            return scenario, scenario.name
+        if isinstance(scenario, Path) or (isinstance(scenario, str) and scenario.endswith(".toml")):
+            return load_scenario(scenario), str(scenario)
+        if not isinstance(scenario, str):
+            raise ValueError(f"scenario: expected a name, a .toml path or a Scenario, got {type(scenario).__name__}")
+        make_scenario(scenario, seed=0, difficulty=self._difficulty, **self._overrides)  # fail fast on bad names
+        return None, scenario
+
+    def _scenario_for(self, seed: int) -> Scenario:
+        if self._fixed_scenario is not None:
+            scn = self._fixed_scenario
+            return scn.with_mission(**self._overrides) if self._overrides else scn
+        return make_scenario(self._scenario_name, seed=seed, difficulty=self._difficulty, **self._overrides)
+
+    # ------------------------------------------------------------------ reset
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        root = np.random.SeedSequence(seed)
+        sensor_ss, wind_ss = root.spawn(2)
+        self._sensor_rng = np.random.default_rng(sensor_ss)
+        self._wind_rng = np.random.default_rng(wind_ss)
+        layout_seed = self.layout_seed if self.layout_seed is not None else (
+            seed if seed is not None else int(root.generate_state(1)[0]))
+        scn = self._scenario_for(layout_seed)
+        cfg = self.config
+        validate_scenario(scn, cfg.uav, cfg.formation.z_ref)
+        if self.scenario is None or scn != self.scenario:
+            self.scenario = scn
+            self.world = scn.build_world()
+            self._prior = self._build_prior()
+        m = scn.mission
+        self.goal = np.asarray(m.goal, dtype=np.float64)
+
+        n = self.n_uavs
+        self.states = np.zeros((n, STATE_DIM))
+        self.states[:, :3] = slot_positions(np.asarray(m.start[:2]), m.start_heading, self.offsets, m.start[2])
+        self.states[:, PSI] = m.start_heading
+        self.broadcast = self.states.copy()
+        self.active = np.ones(n, bool)
+        self.present = np.ones(n, bool)
+        self.crashed = np.zeros(n, bool)
+        self.prev_actions = np.zeros((n, 3), np.float32)
+        self.wind = np.zeros((n, 3))
+        self.step_count = 0
+        self.success = False
+        self._stamp = np.zeros(self.world.shape, np.int32)
+        self.maps = [OccupancyMap(self.world.origin, self.world.shape, self.world.res, cfg.map, stamp=self._stamp)
+                     for _ in range(n)]
+        self._sense()
+        self.agents = list(self.possible_agents)
+        slots = self._true_slots()
+        self._target_dist = self._target_distances(slots)
+        self.history = {"positions": [self.states[:, :3].copy()], "yaw": [self.states[:, PSI].copy()],
+                        "w": [self.states[:, W].copy()], "formation_error": [formation_errors(self.states[:, :3], slots)],
+                        "clearance": [self._clearance()], "crashed": [self.crashed.copy()]}
+        obs = self._observe()
+        infos = self._infos(slots, truncated=False)
+        return obs, infos
+
+    def _build_prior(self) -> PriorMap:
+        ep = self.config.episode
+        if ep.prior_map == "heightmap":
+            origin_xy, res, heights = self.world.heightmap(ep.prior_resolution)
+        else:
+            lo, hi = np.asarray(self.scenario.bounds_lo), np.asarray(self.scenario.bounds_hi)
+            res = ep.prior_resolution
+            origin_xy = np.floor(lo[:2] / res) * res
+            shape = np.ceil((hi[:2] - origin_xy) / res).astype(int)
+            heights = np.zeros(tuple(shape), np.float32)
+        heights = np.array(heights, np.float32)
+        heights.flags.writeable = False
+        return PriorMap(np.asarray(origin_xy, float), float(res), heights, ep.prior_map)
+
+    # ------------------------------------------------------------------ step
+    def step(self, actions):
+        if not self.agents:
+            raise ValueError("step() called after the episode ended (no live agents); call reset() first")
+        acts = self._validate_actions(actions)
+        cfg = self.config
+        was_active = self.active.copy()
+        self.broadcast = self.states.copy()
+        commands = dynamics.actions_to_commands(acts, cfg.uav)
+        dynamics.step(self.states, commands, self.active, cfg.uav)
+        self._apply_wind()
+        self.step_count += 1
+
+        clearance = self._clearance()
+        separation = self._separations()
+        lo, hi = np.asarray(self.scenario.bounds_lo), np.asarray(self.scenario.bounds_hi)
+        pos = self.states[:, :3]
+        outside = np.any((pos[:, :2] < lo[:2]) | (pos[:, :2] > hi[:2]), axis=1)
+        crashed_now = self.active & ((clearance < 0.0) | (separation < 2.0 * cfg.uav.r_uav) | outside)
+        self.crashed |= crashed_now
+        self.active &= ~crashed_now
+        self.states[crashed_now, V] = self.states[crashed_now, W] = self.states[crashed_now, VZ] = 0.0
+
+        self._sense()
+        slots = self._true_slots()
+        ferr = formation_errors(self.states[:, :3], slots)
+        leader_ok = self.active[0] and np.linalg.norm(self.states[0, :3] - self.goal) < cfg.episode.r_goal
+        followers_ok = np.all(ferr[1:][self.active[1:]] < cfg.formation.e_f)
+        self.success = bool(leader_ok and followers_ok)
+
+        target_dist = self._target_distances(slots)
+        is_follower = np.arange(self.n_uavs) > 0
+        rew = compute_rewards(cfg.reward, self._target_dist, target_dist, ferr, is_follower,
+                              crashed_now.astype(float), was_active, acts, self.prev_actions, self.success)
+        self._target_dist = target_dist
+        self.prev_actions = acts
+
+        ended = self.success or not self.active[0] or not self.active.any()
+        truncated = (not ended) and self.step_count >= self.max_cycles
+        live = list(self.agents)
+        obs = self._observe()
+        infos = self._infos(slots, truncated=truncated)
+        rewards = {a: float(rew[self.agent_name_mapping[a]]) for a in live}
+        terminations = {a: bool(ended) for a in live}
+        truncations = {a: bool(truncated) for a in live}
+        if cfg.episode.remove_crashed:
+            for a in live:
+                if self.crashed[self.agent_name_mapping[a]]:
+                    terminations[a] = True
+        self._record(ferr, clearance)
+        self.agents = [] if (ended or truncated) else [a for a in live if not terminations[a]]
+        if self.agents:
+            self.present = np.isin(self.possible_agents, self.agents)
+        obs = {a: obs[a] for a in live}
+        infos = {a: infos[a] for a in live}
+        return obs, rewards, terminations, truncations, infos
+
+    def _validate_actions(self, actions) -> np.ndarray:
+        if not isinstance(actions, dict):
+            raise ValueError(f"actions: expected a dict {{agent: array of shape (3,)}}, got {type(actions).__name__}")
+        unknown = [a for a in actions if a not in self.agent_name_mapping]
+        if unknown:
+            raise ValueError(f"actions for unknown agent(s) {unknown}; agents are {self.possible_agents}")
+        finished = [a for a in actions if a not in self.agents]
+        if finished:
+            raise ValueError(f"actions for agent(s) {finished} that are no longer live; live agents are {self.agents}")
+        missing = [a for a in self.agents if a not in actions]
+        if missing:
+            raise ValueError(f"missing actions for live agent(s) {missing}")
+        acts = np.zeros((self.n_uavs, 3), np.float32)
+        for a, act in actions.items():
+            arr = np.asarray(act, dtype=np.float64)
+            if arr.shape != (3,):
+                raise ValueError(f"action of {a}: expected shape (3,) (forward speed, yaw rate, climb rate in [-1, 1]), "
+                                 f"got shape {arr.shape}")
+            if not np.all(np.isfinite(arr)):
+                raise ValueError(f"action of {a}: expected finite values in [-1, 1], got {arr.tolist()}")
+            acts[self.agent_name_mapping[a]] = np.clip(arr, -1.0, 1.0)
+        return acts
+
+    def _apply_wind(self):
+        ep, dt = self.config.episode, self.config.uav.dt
+        if ep.wind_std <= 0:
+            return
+        # Ornstein-Uhlenbeck gusts (m/s), integrated as a position disturbance.
+        decay = math.exp(-dt / ep.wind_tau)
+        noise = self._wind_rng.standard_normal(self.wind.shape) * ep.wind_std * math.sqrt(1.0 - decay ** 2)
+        self.wind = self.wind * decay + noise
+        self.wind[:, 2] *= 0.3
+        self.states[self.active, :3] += self.wind[self.active] * dt
+        u = self.config.uav
+        np.clip(self.states[:, 2], u.z_min, u.z_max, out=self.states[:, 2])
+
+    # ------------------------------------------------------------------ stages
+    def _sense(self):
+        scan = self.sensor.scan(self.world.occupied, self.world.origin, self.world.res, self.states[:, :3],
+                                self.states[:, PSI], self.step_count, self.config.uav.r_uav, self._sensor_rng)
+        for i in np.flatnonzero(self.active):
+            self.maps[i].integrate_scan(self.states[i, :3], scan.endpoints[i], scan.kind[i])
+        self.last_scan = scan
+
+    def _clearance(self) -> np.ndarray:
+        return self.world.clearance(self.states[:, :3]) - self.config.uav.r_uav
+
+    def _separations(self) -> np.ndarray:
+        pos = self.states[:, :3]
+        d = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=2)
+        np.fill_diagonal(d, np.inf)
+        return d.min(axis=1) if self.n_uavs > 1 else np.full(1, np.inf)
+
+    def _true_slots(self) -> np.ndarray:
+        lead = self.states[0]
+        return slot_positions(lead[:2], lead[PSI], self.offsets, self.config.formation.z_ref)
+
+    def _broadcast_slots(self) -> np.ndarray:
+        lead = self.broadcast[0]
+        return slot_positions(lead[:2], lead[PSI], self.offsets, self.config.formation.z_ref)
+
+    def _target_distances(self, slots) -> np.ndarray:
+        targets = slots.copy()
+        targets[0] = self.goal
+        return np.linalg.norm(self.states[:, :3] - targets, axis=1)
+
+    def _observe(self) -> dict:
+        targets = self._broadcast_slots()
+        targets[0] = self.goal
+        obs = build_observations(self.layout, self.config, self.states, targets, 0, self.broadcast, self.maps,
+                                 self.present)
+        return {a: obs[i] for i, a in enumerate(self.possible_agents)}
+
+    def _infos(self, slots, truncated: bool) -> dict:
+        clearance = self._clearance()
+        sep = self._separations()
+        ferr = formation_errors(self.states[:, :3], slots)
+        goal_dist = float(np.linalg.norm(self.states[0, :3] - self.goal))
+        tdist = self._target_distances(slots)
+        infos = {}
+        for i, a in enumerate(self.possible_agents):
+            infos[a] = {"clearance": float(clearance[i]), "separation": float(sep[i]),
+                        "formation_error": float(ferr[i]), "target_distance": float(tdist[i]),
+                        "goal_distance": goal_dist, "speed": float(self.states[i, V]),
+                        "altitude": float(self.states[i, 2]), "crashed": int(self.crashed[i]),
+                        "success": int(self.success), "step": int(self.step_count),
+                        "TimeLimit.truncated": bool(truncated)}
+        return infos
+
+    def _record(self, ferr, clearance):
+        h = self.history
+        h["positions"].append(self.states[:, :3].copy())
+        h["yaw"].append(self.states[:, PSI].copy())
+        h["w"].append(self.states[:, W].copy())
+        h["formation_error"].append(ferr)
+        h["clearance"].append(clearance)
+        h["crashed"].append(self.crashed.copy())
+
+    # ------------------------------------------------------------------ views for policies and critics
+    def onboard(self, agent: str) -> OnboardView:
+        """What ``agent`` can know on board: never the ground truth (see ``OnboardView``)."""
+        if agent not in self.agent_name_mapping:
+            raise ValueError(f"onboard: unknown agent {agent!r}; agents are {self.possible_agents}")
+        if self.scenario is None:
+            raise ValueError("onboard: call reset() first")
+        i = self.agent_name_mapping[agent]
+        others = np.array([j for j in range(self.n_uavs) if j != i], dtype=np.int64)
+
+        def ro(a):
+            a = np.array(a)
+            a.flags.writeable = False
+            return a
+
+        return OnboardView(
+            agent=agent, index=i, is_leader=(i == 0), state=ro(self.states[i]), goal=ro(self.goal),
+            slot=ro(self._broadcast_slots()[i]), slot_offset=ro(self.offsets[i]), offsets=ro(self.offsets),
+            z_ref=self.config.formation.z_ref, leader_state=ro(self.broadcast[0] if i else self.states[0]),
+            neighbour_ids=ro(others), neighbour_states=ro(self.broadcast[others]),
+            neighbour_alive=ro(self.active[others] & self.present[others]), occupancy=self.maps[i].read_only(),
+            prior=self._prior, limits=self.config.uav, config=self.config, step=self.step_count,
+            bounds_lo=ro(self.scenario.bounds_lo), bounds_hi=ro(self.scenario.bounds_hi), crashed=bool(self.crashed[i]))
+
+    def state(self) -> np.ndarray:
+        lo, hi = np.asarray(self.scenario.bounds_lo), np.asarray(self.scenario.bounds_hi)
+        span = np.maximum(hi - lo, 1e-9)
+        u = self.config.uav
+        s = self.states
+        per = np.column_stack([2 * (s[:, :3] - lo) / span - 1, np.sin(s[:, PSI]), np.cos(s[:, PSI]),
+                               s[:, V] / u.v_max, s[:, W] / u.w_max, s[:, VZ] / max(u.vz_max, 1e-9),
+                               self.active.astype(float)])
+        g = 2 * (self.goal - lo) / span - 1
+        return np.clip(np.concatenate([per.ravel(), g]), -1, 1).astype(np.float32)
+
+    # ------------------------------------------------------------------ rendering
+    def render(self):
+        if self.render_mode is None:
+            import gymnasium
+            gymnasium.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
+            return None
+        if self.scenario is None:
+            raise ValueError("render: call reset() first")
+        from .render import Renderer
+        if self._renderer is None:
+            self._renderer = Renderer(self.render_mode, top_down=self.top_down)
+        return self._renderer.draw(self)
+
+    def close(self):
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+

@@ -1,0 +1,186 @@
+"""The observation vector: a fixed layout of named, bounded float32 fields.
+
+Every field is scaled into a documented range, so the Box bounds are honest and a user can pick
+``obs[layout.slice("obstacle_histogram")]`` without counting offsets. The README's table is
+generated from ``ObservationLayout.table()``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from gymnasium import spaces
+
+from .config import EnvConfig
+from .dynamics import PSI, VZ, W, V, Z
+from .polar_histogram import histogram_shape, primary_histogram, weight_constants
+
+
+@dataclass(frozen=True)
+class Field:
+    name: str
+    size: int
+    low: float
+    high: float
+    meaning: str
+
+
+class ObservationLayout:
+    """The ordered fields of one agent's observation, derived from the config."""
+
+    def __init__(self, cfg: EnvConfig):
+        oc = cfg.observation
+        k = oc.k_neighbours
+        fields = [
+            Field("ego", 6, -1.0, 1.0, "v/v_max, w/w_max, vz/vz_max, sin(psi), cos(psi), altitude scaled to [-1, 1] over [z_min, z_max]"),
+            Field("target", 4, -1.0, 1.0, "goal (leader) or own slot (follower) in the body frame: dx, dy, dz, distance; each / target_clip, clipped"),
+            Field("role", 3, -1.0, 1.0, "is_leader (0/1), sin and cos of the leader's yaw relative to own yaw"),
+        ]
+        if k:
+            fields.append(Field("neighbours", 7 * k, -1.0, 1.0,
+                                f"{k} nearest UAVs (broadcast states), each: dx, dy, dz / neighbour_range, "
+                                "dvx, dvy, dvz / (2 v_max) in the body frame, mask (1 = present); nearest first, zero-padded"))
+        if oc.include_histogram:
+            n_e, n_z = histogram_shape(math.radians(oc.histogram_cell_deg))
+            fields.append(Field("obstacle_histogram", n_e * n_z, 0.0, 1.0,
+                                f"1 - exp(-H) of the 3D VFH+ primary polar histogram of the own map ({n_e} elevation x "
+                                f"{n_z} azimuth cells of {oc.histogram_cell_deg:g} deg, azimuth from the own heading, "
+                                f"radius {oc.histogram_radius:g} m), row-major from -90 deg elevation"))
+        if oc.include_crop:
+            n = oc.crop_cells * oc.crop_cells * oc.crop_cells_z
+            fields.append(Field("map_crop", n, 0.0, 1.0,
+                                f"occupancy probability (unknown = 0.5) of octree level {oc.crop_level}: a world-aligned "
+                                f"{oc.crop_cells}x{oc.crop_cells}x{oc.crop_cells_z} block of cells centred on the UAV, x-major"))
+        self.fields = tuple(fields)
+        self._slices = {}
+        start = 0
+        for f in self.fields:
+            self._slices[f.name] = slice(start, start + f.size)
+            start += f.size
+        self.size = start
+        self.low = np.concatenate([np.full(f.size, f.low, np.float32) for f in self.fields])
+        self.high = np.concatenate([np.full(f.size, f.high, np.float32) for f in self.fields])
+
+    def slice(self, name: str) -> slice:
+        if name not in self._slices:
+            raise KeyError(f"observation field {name!r} is not in this layout; fields: {list(self._slices)}")
+        return self._slices[name]
+
+    def space(self) -> spaces.Box:
+        return spaces.Box(self.low.copy(), self.high.copy(), dtype=np.float32)
+
+    def table(self) -> str:
+        rows = ["| field | slice | range | meaning |", "|---|---|---|---|"]
+        for f in self.fields:
+            s = self._slices[f.name]
+            rows.append(f"| `{f.name}` | {s.start}:{s.stop} | [{f.low:g}, {f.high:g}] | {f.meaning} |")
+        return "\n".join(rows)
+
+
+def _body(dxy: np.ndarray, psi: np.ndarray) -> np.ndarray:
+    """Rotate world-frame horizontal vectors (..., 2) into body frames with yaws psi (broadcast)."""
+    c, s = np.cos(psi), np.sin(psi)
+    return np.stack([c * dxy[..., 0] + s * dxy[..., 1], -s * dxy[..., 0] + c * dxy[..., 1]], axis=-1)
+
+
+def build_observations(layout: ObservationLayout, cfg: EnvConfig, states: np.ndarray, targets: np.ndarray,
+                       leader_index: int, broadcast: np.ndarray, maps, neighbour_ok: np.ndarray) -> np.ndarray:
+    """Observations (N, size) float32 of all UAVs.
+
+    ``states`` are the true own states, ``broadcast`` the neighbours' broadcast states (one cycle
+    old), ``targets`` (N, 3) each UAV's goal or slot, ``maps`` the onboard maps, ``neighbour_ok``
+    (N,) which UAVs still broadcast (a removed UAV does not).
+    """
+    u, oc = cfg.uav, cfg.observation
+    n = states.shape[0]
+    out = np.zeros((n, layout.size), np.float32)
+    psi = states[:, PSI]
+
+    ego = out[:, layout.slice("ego")]
+    ego[:, 0] = states[:, V] / u.v_max
+    ego[:, 1] = states[:, W] / u.w_max
+    ego[:, 2] = states[:, VZ] / u.vz_max if u.vz_max > 0 else 0.0
+    ego[:, 3] = np.sin(psi)
+    ego[:, 4] = np.cos(psi)
+    ego[:, 5] = 2.0 * (states[:, Z] - u.z_min) / (u.z_max - u.z_min) - 1.0
+
+    rel = targets - states[:, :3]
+    tgt = out[:, layout.slice("target")]
+    tgt[:, :2] = _body(rel[:, :2], psi) / oc.target_clip
+    tgt[:, 2] = rel[:, 2] / oc.target_clip
+    tgt[:, 3] = np.linalg.norm(rel, axis=1) / oc.target_clip
+
+    role = out[:, layout.slice("role")]
+    role[leader_index, 0] = 1.0
+    dpsi = broadcast[leader_index, PSI] - psi
+    role[:, 1] = np.sin(dpsi)
+    role[:, 2] = np.cos(dpsi)
+
+    if oc.k_neighbours:
+        _neighbour_features(out[:, layout.slice("neighbours")], states, broadcast, neighbour_ok, oc.k_neighbours,
+                            oc.neighbour_range, u.v_max)
+    if oc.include_histogram:
+        cell = math.radians(oc.histogram_cell_deg)
+        r_e = u.r_uav + u.r_safe + cfg.map.resolution
+        a, b = weight_constants(2.0, oc.histogram_radius, r_e)
+        hist = out[:, layout.slice("obstacle_histogram")]
+        for i in range(n):
+            centres, probs = maps[i].occupied_in_sphere(states[i, :3], oc.histogram_radius)
+            h, _ = primary_histogram(centres, probs, np.full(len(probs), r_e), states[i, :3], cell,
+                                     oc.histogram_radius, a, b, azimuth_ref=psi[i])
+            hist[i] = -np.expm1(-h.ravel())
+    if oc.include_crop:
+        crop = out[:, layout.slice("map_crop")]
+        for i in range(n):
+            crop[i] = map_crop(maps[i], states[i, :3], oc.crop_level, oc.crop_cells, oc.crop_cells_z).ravel()
+    np.clip(out, layout.low, layout.high, out=out)
+    return out
+
+
+def _neighbour_features(block, states, broadcast, neighbour_ok, k, rng_max, v_max):
+    n = states.shape[0]
+    vel = np.stack([broadcast[:, V] * np.cos(broadcast[:, PSI]), broadcast[:, V] * np.sin(broadcast[:, PSI]),
+                    broadcast[:, VZ]], axis=1)
+    own_vel = np.stack([states[:, V] * np.cos(states[:, PSI]), states[:, V] * np.sin(states[:, PSI]), states[:, VZ]], axis=1)
+    rel = broadcast[None, :, :3] - states[:, None, :3]               # (n, n, 3)
+    dist = np.linalg.norm(rel, axis=2)
+    dist[np.arange(n), np.arange(n)] = np.inf
+    dist[:, ~neighbour_ok] = np.inf
+    dist[dist > rng_max] = np.inf
+    order = np.argsort(dist, axis=1, kind="stable")[:, :k]
+    feats = block.reshape(n, k, 7)
+    for slot in range(min(k, n - 1)):
+        j = order[:, slot]
+        present = np.isfinite(dist[np.arange(n), j])
+        r = rel[np.arange(n), j]
+        dv = vel[j] - own_vel
+        feats[:, slot, :2] = _body(r[:, :2], states[:, PSI]) / rng_max
+        feats[:, slot, 2] = r[:, 2] / rng_max
+        feats[:, slot, 3:5] = _body(dv[:, :2], states[:, PSI]) / (2.0 * v_max)
+        feats[:, slot, 5] = dv[:, 2] / (2.0 * v_max)
+        feats[:, slot, 6] = 1.0
+        feats[~present, slot, :] = 0.0
+
+
+def map_crop(occ_map, center: np.ndarray, level: int, cells: int, cells_z: int) -> np.ndarray:
+    """Occupancy probabilities of a world-aligned block of octree-level cells around ``center``.
+
+    Unknown cells read 0.5; cells outside the map read 0.5 as well (nothing is known there).
+    """
+    lvl_origin, lvl_res, grid = occ_map.level(level)
+    idx = np.floor((np.asarray(center) - lvl_origin) / lvl_res).astype(np.int64)
+    lo = idx - np.array([cells // 2, cells // 2, cells_z // 2])
+    shape = np.array([cells, cells, cells_z])
+    out = np.full(tuple(shape), np.nan, np.float32)
+    src_lo = np.maximum(lo, 0)
+    src_hi = np.minimum(lo + shape, grid.shape)
+    if np.all(src_hi > src_lo):
+        dst_lo = src_lo - lo
+        dst_hi = dst_lo + (src_hi - src_lo)
+        out[dst_lo[0]:dst_hi[0], dst_lo[1]:dst_hi[1], dst_lo[2]:dst_hi[2]] = \
+            grid[src_lo[0]:src_hi[0], src_lo[1]:src_hi[1], src_lo[2]:src_hi[2]]
+    prob = 1.0 / (1.0 + np.exp(-out))
+    return np.where(np.isnan(out), 0.5, prob).astype(np.float32)
+
