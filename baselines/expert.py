@@ -1,0 +1,470 @@
+"""The fusion expert of spec (g): A* + improved DWA in the plane, 3D VFH+ for the vertical, in a
+distributed leader-follower formation controller.
+
+Every UAV runs the same cycle (g3) on its own onboard view: target (leader: goal and A* lookahead;
+follower: the slot predicted over the DWA horizon), 3D VFH+ on its own map, a debounced vertical
+decision (g4), then DWA with a 3D-aware clearance (g5) and the neighbours as moving obstacles (g6).
+All weights and thresholds live in one ``ExpertConfig``; ``act(..., weights=...)`` overrides the
+evaluation weights per UAV and step (the residual-RL interface). The same class with
+``use_vfh=False`` is the planar (2D, fixed-altitude) formation used by the DWA baselines.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from uavform_env.config import _check_choice, _check_int, _check_range, _Config
+from uavform_env.dynamics import PSI, V, VZ, W, commands_to_actions, wrap
+
+from .astar import AStarConfig, GlobalPath, Raster, inflate, plan_path, replan_trigger
+from .dwa import DWAConfig, dwa_plan
+from .policy import OnboardPolicy
+from .vfh3d import VFHConfig, VFHState, vfh3d_step
+
+LEVEL, CLIMB, BLOCKED = "level", "climb", "blocked"
+WEIGHT_NAMES = ("alpha0", "beta", "gamma", "eps0", "k1", "k2", "k3")
+ASTAR_LAYERS = ("passable", "band")
+
+
+@dataclass(frozen=True)
+class ExpertConfig(_Config):
+    """Every weight and threshold of the fusion controller (spec (g), Appendix A 'formation').
+
+    use_vfh            3D fusion (True) or the planar formation of the 2D baselines (False)
+    neighbour_prediction  neighbours move at their broadcast velocity in DWA (g6; E6 switches it off)
+    shape_switching    a follower whose slot is blocked in its own map falls back to a column slot (g7) [X]
+    astar_layer        "passable": a raster cell blocks only where no free vertical gap is left in the
+                       altitude band (the fusion controller may climb); "band": any obstacle at the
+                       formation altitude blocks (planar controllers) [X]
+    dwa_map_level      octree level whose voxels form DWA's obstacle set (1 = 0.4 m voxels at 0.2 m) [X]
+    replan_check_period  how often (s) the leader rebuilds its raster and tests the (d5) triggers [X]
+    """
+
+    dwa: DWAConfig = field(default_factory=lambda: DWAConfig.ablation("IDWA"))
+    vfh: VFHConfig = field(default_factory=VFHConfig)
+    astar: AStarConfig = field(default_factory=AStarConfig)
+    use_vfh: bool = True
+    neighbour_prediction: bool = True
+    shape_switching: bool = True
+    astar_layer: str = "passable"
+    dwa_map_level: int = 1
+    replan_check_period: float = 0.5
+    k_f: float = 0.5
+    k_h: float = 1.0
+    k_z: float = 0.5
+    leader_speed_cap: float = 0.8
+    e0: float = 1.0
+    e1: float = 3.0
+    debounce: int = 3
+    T_stuck: float = 5.0
+    climb_lookahead: float = 3.0
+    yield_factor: float = 0.5
+    column_hold: float = 3.0
+
+    def __post_init__(self):
+        o = "ExpertConfig"
+        for name, cls in (("dwa", DWAConfig), ("vfh", VFHConfig), ("astar", AStarConfig)):
+            if not isinstance(getattr(self, name), cls):
+                raise ValueError(f"{o}.{name}: expected a {cls.__name__}")
+        for name in ("use_vfh", "neighbour_prediction", "shape_switching"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{o}.{name}={getattr(self, name)!r}: expected a bool")
+        _check_choice(o, "astar_layer", self.astar_layer, ASTAR_LAYERS)
+        _check_int(o, "dwa_map_level", self.dwa_map_level, 0, 4)
+        _check_int(o, "debounce", self.debounce, 1, 100)
+        for name in ("replan_check_period", "k_f", "k_h", "k_z", "T_stuck", "climb_lookahead", "column_hold"):
+            _check_range(o, name, getattr(self, name), 0.0, None)
+        _check_range(o, "leader_speed_cap", self.leader_speed_cap, 0.0, 1.0, lo_open=True)
+        _check_range(o, "yield_factor", self.yield_factor, 0.0, 1.0)
+        _check_range(o, "e0", self.e0, 0.0, None)
+        _check_range(o, "e1", self.e1, self.e0, None, lo_open=True)
+
+    @classmethod
+    def planar(cls, ablation: str = "IDWA", **overrides) -> "ExpertConfig":
+        """The 2D formation: fixed altitude, no 3D VFH+, the named DWA ablation, band raster for A*."""
+        return cls(dwa=DWAConfig.ablation(ablation), use_vfh=False, astar_layer="band", **overrides)
+
+    def weights(self) -> np.ndarray:
+        """The evaluation weights in ``WEIGHT_NAMES`` order (DWA alpha0, beta, gamma, eps0; VFH k1, k2, k3)."""
+        d, v = self.dwa, self.vfh
+        return np.array([d.alpha0, d.beta, d.gamma, d.eps0, v.k1, v.k2, v.k3])
+
+    def with_weights(self, w) -> "ExpertConfig":
+        w = np.asarray(w, dtype=np.float64)
+        if w.shape != (len(WEIGHT_NAMES),) or not np.all(np.isfinite(w)) or np.any(w < 0):
+            raise ValueError(f"weights: expected {len(WEIGHT_NAMES)} finite values >= 0 in the order {WEIGHT_NAMES}, "
+                             f"got {w.tolist() if w.size < 20 else w.shape}")
+        dwa = replace(self.dwa, alpha0=w[0], alpha=w[0], beta=w[1], gamma=w[2], eps0=w[3])
+        vfh = replace(self.vfh, k1=w[4], k2=w[5], k3=w[6])
+        return replace(self, dwa=dwa, vfh=vfh)
+
+
+@dataclass
+class _UAVMemory:
+    """What one UAV's controller remembers between cycles."""
+
+    vfh: VFHState = field(default_factory=VFHState)
+    mode: str = LEVEL
+    pending: str = LEVEL
+    pending_count: int = 0
+    stuck_time: float = 0.0
+    prev_alignment: float = 1.0
+    column_until: float = -1.0
+    path: GlobalPath | None = None
+    path_found: bool = True
+    last_plan_time: float = -1e9
+    last_check_time: float = -1e9
+    replans: int = 0
+
+
+class FusionExpert(OnboardPolicy):
+    """The paper's fusion planner as a distributed formation controller (see the module docstring)."""
+
+    def __init__(self, config: ExpertConfig | None = None):
+        self.config = config if config is not None else ExpertConfig()
+        if not isinstance(self.config, ExpertConfig):
+            raise ValueError(f"config: expected an ExpertConfig, got {type(self.config).__name__}")
+
+    def reset(self, env, seed: int | None = None) -> None:
+        super().reset(env, seed)
+        base = self.env
+        self.memory = {a: _UAVMemory() for a in base.possible_agents}
+        lead = base.onboard(base.possible_agents[0])
+        self.raster = _raster_for(lead, self.config.astar.res_g)
+        if lead.prior.kind != "none" and self._plan(lead, self.memory[lead.agent], 0.0) is None:
+            raise ValueError(f"infeasible mission: the goal {lead.goal.tolist()} cannot be reached from the start "
+                             f"{lead.state[:3].tolist()} on the prior map ({lead.prior.kind}) with the "
+                             f"'{self.config.astar_layer}' raster of this controller")
+
+    def act(self, observations: dict, env, weights: dict | None = None) -> dict:
+        base = getattr(env, "unwrapped", env)
+        if getattr(self, "env", None) is not base:
+            raise ValueError("policy: act() called with an env this policy was not reset() on; call reset(env, seed)")
+        out = {}
+        for agent in base.agents:
+            cfg = self.config if weights is None or agent not in weights else self.config.with_weights(weights[agent])
+            cmd = self._cycle(base.onboard(agent), cfg)
+            out[agent] = commands_to_actions(cmd, base.config.uav)
+        return out
+
+    # ------------------------------------------------------------------ one UAV's cycle (g3)
+    def _cycle(self, view, cfg: ExpertConfig) -> np.ndarray:
+        mem = self.memory[view.agent]
+        lim = view.limits
+        s = view.state
+        t = view.step * lim.dt
+        pos = s[:3]
+        if view.crashed:
+            return np.zeros(3)
+
+        z_slot = view.z_ref + view.slot_offset[2]
+        if view.is_leader:
+            goal, lookahead, v_cap, v_ref = self._leader_target(view, mem, cfg, t)
+            if goal is None:                                    # unreachable: hold position safely
+                self.diagnostics[view.agent] = {"mode": mem.mode, "stuck": True, "unreachable": True,
+                                                "replans": mem.replans}
+                return np.array([0.0, 0.0, float(np.clip(cfg.k_z * (z_slot - pos[2]), -lim.vz_max, lim.vz_max))])
+        else:
+            goal, lookahead, v_cap, v_ref = self._follower_target(view, mem, cfg, t)
+
+        movers_pos, movers_vel = self._neighbours(view, cfg)
+        v_cap = self._yield(view, movers_pos, movers_vel, cfg, v_cap)
+
+        level = cfg.dwa_map_level
+        vox_size = view.occupancy.resolution * (2 ** level)
+        reach = lim.v_max * cfg.dwa.T_p + cfg.dwa.D_cap + lim.r_uav + vox_size
+        obstacles, _ = view.occupancy.occupied_in_sphere(pos, reach, level=level)
+        radius = vox_size * math.sqrt(3.0) / 2.0
+
+        vz_cmd = float(np.clip(cfg.k_z * (z_slot - pos[2]), -lim.vz_max, lim.vz_max))
+        heading_goal = goal
+        vfh_result = None
+        emergency = False
+        if cfg.use_vfh:
+            centres, probs = view.occupancy.occupied_in_sphere(pos, cfg.vfh.R_w)
+            target = np.array([lookahead[0], lookahead[1], z_slot])
+            alive = view.neighbour_alive
+            near = movers_pos[alive]
+            vfh_result = vfh3d_step(mem.vfh, cfg.vfh, lim, pos, s[PSI], s[V], s[VZ], target - pos, centres, probs,
+                                    view.occupancy.resolution, near)
+            emergency = vfh_result.emergency
+            mode = self._debounced_mode(mem, vfh_result, cfg)
+            if mode == CLIMB and not vfh_result.blocked:
+                e = vfh_result.elevation
+                vz_cmd = float(np.clip(max(s[V], 0.3) * math.tan(e), -lim.vz_max, lim.vz_max))
+                az = vfh_result.azimuth
+                heading_goal = pos[:2] + cfg.climb_lookahead * np.array([math.cos(az), math.sin(az)])
+            elif mode == BLOCKED:
+                vz_cmd = 0.0
+        else:
+            obstacles = _project_to_altitude(obstacles, pos[2], lim.r_uav + lim.r_safe + radius)
+            mem.mode = LEVEL
+
+        clearance_now = _clearance(pos, obstacles, radius, lim.r_uav)
+        res = dwa_plan(s, lim, cfg.dwa, heading_goal, obstacles, radius, vz_cmd=vz_cmd, lookahead=lookahead,
+                       clearance_now=clearance_now, movers_pos=movers_pos[view.neighbour_alive],
+                       movers_vel=movers_vel[view.neighbour_alive], v_ref=v_ref, v_cap=v_cap,
+                       prev_alignment=mem.prev_alignment)
+        mem.prev_alignment = res.alignment if math.isfinite(res.alignment) else 1.0
+        v_c, w_c = res.v, res.w
+        if not res.admissible:
+            mem.stuck_time += lim.dt
+            bearing = math.atan2(heading_goal[1] - pos[1], heading_goal[0] - pos[0])
+            w_c = float(np.clip(wrap(bearing - s[PSI]), -lim.w_max, lim.w_max))
+            if cfg.use_vfh and mem.stuck_time >= cfg.T_stuck and vfh_result is not None:
+                vz_cmd = _vertical_escape(vfh_result, lim)
+        else:
+            mem.stuck_time = 0.0
+        if emergency and vfh_result is not None:
+            v_c = 0.0
+            vz_cmd = _away_vertically(pos, view.occupancy, cfg.vfh.R_w, lim)
+        self.diagnostics[view.agent] = {
+            "mode": mem.mode, "stuck": not res.admissible, "n_admissible": res.n_admissible,
+            "vfh_blocked": bool(vfh_result.blocked) if vfh_result is not None else False, "emergency": emergency,
+            "replans": mem.replans, "path_found": mem.path_found, "column": t < mem.column_until,
+            "clearance": clearance_now}
+        return np.array([v_c, w_c, vz_cmd])
+
+    # ------------------------------------------------------------------ targets
+    def _leader_target(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float):
+        lim = view.limits
+        pos_xy = view.state[:2]
+        if mem.replans == 0 or t - mem.last_check_time >= cfg.replan_check_period:
+            mem.last_check_time = t
+            blocked = self._blocked_raster(view, cfg)
+            if mem.replans == 0:
+                self._plan(view, mem, t, blocked)
+            else:
+                inflated = inflate(blocked, lim.r_uav + lim.r_safe, self.raster.res)
+                if replan_trigger(mem.path, pos_xy, inflated, self.raster, max(0.0, t - mem.last_plan_time), True,
+                                  cfg.astar) is not None:
+                    self._plan(view, mem, t, blocked)
+        if not mem.path_found:
+            return None, None, None, None
+        lookahead = mem.path.lookahead(pos_xy, cfg.astar.lookahead) if mem.path is not None else view.goal[:2]
+        goal = lookahead if cfg.astar.heading_target == "lookahead" else view.goal[:2]
+        errors = _follower_errors(view)
+        scale = 1.0
+        if errors.size:
+            mean_err = float(errors.mean())
+            scale = float(np.clip(1.0 - (mean_err - cfg.e0) / (cfg.e1 - cfg.e0), 0.3, 1.0))
+        return goal, lookahead, cfg.leader_speed_cap * lim.v_max * scale, None
+
+    def _plan(self, view, mem: _UAVMemory, t: float, blocked=None):
+        cfg = self.config
+        lim = view.limits
+        if blocked is None:
+            blocked = self._blocked_raster(view, cfg)
+        path = plan_path(blocked, self.raster, np.clip(view.state[:2], *self._raster_box()),
+                         np.clip(view.goal[:2], *self._raster_box()), lim.r_uav + lim.r_safe, cfg.astar)
+        mem.path, mem.path_found = path, path is not None
+        mem.last_plan_time = t
+        mem.replans += 1
+        return path
+
+    def _raster_box(self):
+        lo = np.asarray(self.raster.origin) + 1e-6
+        hi = lo + np.asarray(self.raster.shape) * self.raster.res - 2e-6
+        return lo, hi
+
+    def _blocked_raster(self, view, cfg: ExpertConfig) -> np.ndarray:
+        """The leader's 2D raster: its own map's occupied voxels, plus the prior map, per ``astar_layer``."""
+        lim = view.limits
+        h_b = lim.r_uav + lim.r_safe
+        occ_map = view.occupancy
+        logodds = occ_map.logodds
+        occupied = logodds > 0.0                                          # NaN (unknown) compares False: free
+        res = occ_map.resolution
+        z_centres = occ_map.origin[2] + (np.arange(logodds.shape[2]) + 0.5) * res
+        if cfg.astar_layer == "band":
+            band = np.abs(z_centres - view.z_ref) <= h_b + res / 2
+            column = occupied[:, :, band].any(axis=2)
+        else:
+            column = _no_vertical_gap(occupied, z_centres, lim.z_min, lim.z_max, 2 * h_b + res)
+        blocked = np.zeros(self.raster.shape, bool)
+        ii, jj = np.nonzero(column)
+        if ii.size:
+            xy = occ_map.origin[:2] + (np.column_stack([ii, jj]) + 0.5) * res
+            cells = np.floor((xy - np.asarray(self.raster.origin)) / self.raster.res).astype(np.int64)
+            ok = np.all((cells >= 0) & (cells < np.asarray(self.raster.shape)), axis=1)
+            blocked[cells[ok, 0], cells[ok, 1]] = True
+        prior = view.prior
+        if prior.kind != "none":
+            limit = view.z_ref - h_b if cfg.astar_layer == "band" else lim.z_max - 2 * h_b
+            pi, pj = np.nonzero(prior.heights > limit)
+            if pi.size:
+                xy = prior.origin + (np.column_stack([pi, pj]) + 0.5) * prior.resolution
+                cells = np.floor((xy - np.asarray(self.raster.origin)) / self.raster.res).astype(np.int64)
+                ok = np.all((cells >= 0) & (cells < np.asarray(self.raster.shape)), axis=1)
+                blocked[cells[ok, 0], cells[ok, 1]] = True
+        return blocked
+
+    def _follower_target(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float):
+        lim = view.limits
+        lead = view.leader_state
+        offset = view.slot_offset
+        if cfg.shape_switching:
+            column_offset = np.array([-view.index * view.config.formation.spacing, 0.0, offset[2]])
+            if view.occupancy.occupied_within(view.slot, lim.r_uav + lim.r_safe + view.occupancy.resolution):
+                mem.column_until = t + cfg.column_hold
+            if t < mem.column_until:
+                offset = column_offset
+        pred_xy, pred_psi = _predict_unicycle(lead, cfg.dwa.T_p, lim.dt)
+        c, s_ = math.cos(pred_psi), math.sin(pred_psi)
+        goal = pred_xy + np.array([c * offset[0] - s_ * offset[1], s_ * offset[0] + c * offset[1]])
+        heading_l = np.array([math.cos(lead[PSI]), math.sin(lead[PSI])])
+        a_j = goal - view.state[:2] + cfg.k_h * heading_l
+        lookahead = view.state[:2] + a_j
+        cl, sl = heading_l
+        slot_now = lead[:2] + np.array([cl * offset[0] - sl * offset[1], sl * offset[0] + cl * offset[1]])
+        e_par = float((slot_now - view.state[:2]) @ heading_l)
+        v_ref = float(np.clip(lead[V] + cfg.k_f * e_par, 0.0, lim.v_max))
+        return goal, lookahead, None, v_ref
+
+    # ------------------------------------------------------------------ neighbours (g6)
+    def _neighbours(self, view, cfg: ExpertConfig):
+        ns = view.neighbour_states
+        vel = np.column_stack([ns[:, V] * np.cos(ns[:, PSI]), ns[:, V] * np.sin(ns[:, PSI]), ns[:, VZ]])
+        pos = ns[:, :3] + vel * view.limits.dt                             # broadcasts are one cycle old
+        if not cfg.neighbour_prediction:
+            vel = np.zeros_like(vel)
+        return pos, vel
+
+    def _yield(self, view, movers_pos, movers_vel, cfg: ExpertConfig, v_cap):
+        """Deadlock rule of (g6): a UAV predicting a conflict with a lower-index UAV caps its speed."""
+        if view.is_leader or cfg.yield_factor >= 1.0:
+            return v_cap
+        lim = view.limits
+        s = view.state
+        own_vel = np.array([s[V] * math.cos(s[PSI]), s[V] * math.sin(s[PSI]), s[VZ]])
+        k = np.arange(1, round(cfg.dwa.T_p / lim.dt) + 1)[:, None, None] * lim.dt
+        lower = (view.neighbour_ids < view.index) & view.neighbour_alive
+        if not lower.any():
+            return v_cap
+        rel = (s[:3] - movers_pos[lower])[None] + k * (own_vel - movers_vel[lower])[None]
+        if np.linalg.norm(rel, axis=2).min() < cfg.dwa.R_uu:
+            base = lim.v_max if v_cap is None else v_cap
+            return cfg.yield_factor * base
+        return v_cap
+
+    # ------------------------------------------------------------------ vertical decision (g4)
+    def _debounced_mode(self, mem: _UAVMemory, r, cfg: ExpertConfig) -> str:
+        if r.blocked:
+            proposal = BLOCKED
+        elif abs(r.elevation) <= cfg.vfh.alpha_h / 2 + 1e-9:
+            proposal = LEVEL
+        else:
+            proposal = CLIMB
+        if proposal == mem.mode:
+            mem.pending, mem.pending_count = proposal, 0
+        elif proposal == mem.pending:
+            mem.pending_count += 1
+            if mem.pending_count >= cfg.debounce:
+                mem.mode, mem.pending_count = proposal, 0
+        else:
+            mem.pending, mem.pending_count = proposal, 1
+            if cfg.debounce <= 1:
+                mem.mode = proposal
+        return mem.mode
+
+
+# ---------------------------------------------------------------------- helpers
+def _raster_for(view, res: float) -> Raster:
+    lo = np.asarray(view.bounds_lo[:2], dtype=np.float64)
+    hi = np.asarray(view.bounds_hi[:2], dtype=np.float64)
+    origin = np.floor(lo / res) * res
+    shape = np.ceil((hi - origin) / res).astype(int)
+    return Raster(tuple(origin), res, tuple(int(v) for v in shape))
+
+
+def _no_vertical_gap(occupied: np.ndarray, z_centres: np.ndarray, z_min: float, z_max: float, gap: float) -> np.ndarray:
+    """Columns with no free run of height >= ``gap`` inside [z_min, z_max] (unknown counts as free)."""
+    band = (z_centres >= z_min) & (z_centres <= z_max)
+    sub = occupied[:, :, band]
+    out = np.zeros(occupied.shape[:2], bool)
+    cols = sub.any(axis=2)
+    if not cols.any():
+        return out
+    dz = z_centres[1] - z_centres[0] if len(z_centres) > 1 else 1.0
+    g = max(1, int(math.ceil(gap / dz)))
+    c = sub[cols].astype(np.int32)
+    if c.shape[1] < g:
+        out[cols] = True
+        return out
+    cs = np.concatenate([np.zeros((c.shape[0], 1), np.int32), np.cumsum(c, axis=1)], axis=1)
+    free_run = (cs[:, g:] - cs[:, :-g]) == 0
+    out[cols] = ~free_run.any(axis=1)
+    return out
+
+
+def _project_to_altitude(obstacles: np.ndarray, z: float, band: float) -> np.ndarray:
+    """Planar mode: keep the voxels within ``band`` of the flight altitude and put them at that altitude."""
+    keep = np.abs(obstacles[:, 2] - z) <= band
+    out = obstacles[keep].copy()
+    out[:, 2] = z
+    return out
+
+
+def _clearance(pos, obstacles, radius, r_uav) -> float:
+    if len(obstacles) == 0:
+        return math.inf
+    return float(np.sqrt(np.min(np.sum((obstacles - pos) ** 2, axis=1)))) - radius - r_uav
+
+
+def _follower_errors(view) -> np.ndarray:
+    """Horizontal slot errors of the followers, from their broadcasts and the leader's own pose."""
+    s = view.state
+    ids = view.neighbour_ids
+    c, sn = math.cos(s[PSI]), math.sin(s[PSI])
+    off = view.offsets[ids]
+    slots = s[:2] + np.column_stack([c * off[:, 0] - sn * off[:, 1], sn * off[:, 0] + c * off[:, 1]])
+    alive = view.neighbour_alive
+    return np.linalg.norm(view.neighbour_states[alive, :2] - slots[alive], axis=1)
+
+
+def _predict_unicycle(state, horizon: float, dt: float):
+    """Pose (xy, psi) after ``horizon`` at constant (v, w) with the model of spec (a) (yaw first, closed form sum)."""
+    n = max(1, round(horizon / dt))
+    k = np.arange(1, n + 1)
+    psi = state[PSI] + k * state[W] * dt
+    x = state[0] + np.sum(state[V] * np.cos(psi) * dt)
+    y = state[1] + np.sum(state[V] * np.sin(psi) * dt)
+    return np.array([x, y]), float(psi[-1])
+
+
+def _vertical_escape(r, lim) -> float:
+    """After T_stuck: climb (or descend) at full rate if the straight-up (down) cells hold no obstacle."""
+    if not r.binary[-1].any():
+        return lim.vz_max
+    if not r.binary[0].any():
+        return -lim.vz_max
+    return 0.0
+
+
+def _away_vertically(pos, occ_map, radius, lim) -> float:
+    centres, _ = occ_map.occupied_in_sphere(pos, radius)
+    if len(centres) == 0:
+        return 0.0
+    nearest = centres[np.argmin(np.sum((centres - pos) ** 2, axis=1))]
+    return -lim.vz_max if nearest[2] > pos[2] else lim.vz_max
+
+
+class StandardDWA(FusionExpert):
+    """Planar formation with the standard DWA of spec (b): fixed altitude, no 3D VFH+."""
+
+    def __init__(self, config: ExpertConfig | None = None):
+        super().__init__(config or ExpertConfig.planar("DWA"))
+
+
+def planar_formation(ablation: str):
+    """A factory for the planar formation with one DWA ablation (``DWA+E8``, ``DWA+E8+E10``, ``IDWA``)."""
+    def make():
+        return FusionExpert(ExpertConfig.planar(ablation))
+    make.__name__ = f"planar_{ablation}"
+    return make
+
+
+__all__ = ["ExpertConfig", "FusionExpert", "StandardDWA", "WEIGHT_NAMES", "planar_formation"]
