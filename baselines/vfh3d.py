@@ -1,0 +1,420 @@
+"""3D VFH+ (spec (f)): from occupied voxels to one free flight direction per planning cycle.
+
+Stages: primary histogram (``uavform_env.polar_histogram``), turning and climbing limits (f3),
+binary histogram with hysteresis (f4), masked histogram (f5), open-window detection and the
+three-term cost (f6), plus the optional DP passage cost (f7). All histograms here are in the world
+frame (column 0 starts at azimuth 0 = +x). Each function is pure except ``vfh3d_step``, which keeps the
+per-UAV memory (binary histogram, previous selection) in a ``VFHState``.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from uavform_env.config import UAVLimits, _check_choice, _check_int, _check_range, _Config
+from uavform_env.dynamics import wrap
+from uavform_env.polar_histogram import (ENLARGE_MODES, WEIGHT_RELATIONS, cell_geometry, cell_index,
+                                         histogram_shape, primary_histogram, weight_constants)
+
+
+@dataclass(frozen=True)
+class VFHConfig(_Config):
+    """Parameters of 3D VFH+ (spec (f0)); ``None`` fields are derived per call.
+
+    ``r_e`` None -> r_uav + r_safe + voxel size; ``b`` None -> ``weight_constants(a, R_w, r_e,
+    weight_relation, voxel_size)`` (an explicit ``b`` overrides the relation);
+    ``neighbour_r_extra`` None -> r_uav, the extra enlargement of neighbour pseudo-voxels (spec (g6)).
+    ``enlarge_mode`` and ``weight_relation`` are the [X] switches of spec (f2); ``k4`` weighs the
+    [X] DP passage cost of spec (f7) (0 = pure 3D VFH+).
+    """
+
+    alpha_h: float = math.radians(5.0)
+    R_w: float = 5.0
+    r_e: float | None = None
+    a: float = 2.0
+    b: float | None = None
+    tau_low: float = 0.3
+    tau_high: float = 0.9
+    win: int = 2
+    k1: float = 5.0
+    k2: float = 2.0
+    k3: float = 2.0
+    k4: float = 0.0
+    enlarge_mode: str = "ceil_2d"
+    weight_relation: str = "edge_equals_one"
+    neighbour_r_extra: float | None = None
+
+    def __post_init__(self):
+        o = "VFHConfig"
+        _check_range(o, "alpha_h", self.alpha_h, 0.0, math.pi / 2, lo_open=True)
+        try:
+            histogram_shape(self.alpha_h)
+        except ValueError as err:
+            raise ValueError(f"{o}.alpha_h: {err}") from None
+        _check_range(o, "R_w", self.R_w, 0.0, 100.0, lo_open=True)
+        if self.r_e is not None:
+            _check_range(o, "r_e", self.r_e, 0.0, self.R_w, lo_open=True, hi_open=True)
+        _check_range(o, "a", self.a, 0.0, None, lo_open=True)
+        if self.b is not None:
+            _check_range(o, "b", self.b, 0.0, None, lo_open=True)
+        _check_range(o, "tau_low", self.tau_low, 0.0, None)
+        _check_range(o, "tau_high", self.tau_high, self.tau_low, None)
+        _check_int(o, "win", self.win, 0, 90)
+        for name in ("k1", "k2", "k3", "k4"):
+            _check_range(o, name, getattr(self, name), 0.0, None)
+        _check_choice(o, "enlarge_mode", self.enlarge_mode, ENLARGE_MODES)
+        _check_choice(o, "weight_relation", self.weight_relation, WEIGHT_RELATIONS)
+        if self.neighbour_r_extra is not None:
+            _check_range(o, "neighbour_r_extra", self.neighbour_r_extra, 0.0, None)
+
+    @functools.lru_cache(maxsize=32)  # noqa: B019 - frozen, hashable config; called every cycle
+    def resolve(self, limits: UAVLimits, voxel_size: float) -> tuple[float, float, float, float]:
+        """(r_e, a, b, neighbour_r_extra) with the ``None`` defaults filled in; the edge weight must stay positive."""
+        if not voxel_size > 0.0:
+            raise ValueError(f"voxel_size={voxel_size!r}: expected a positive edge length")
+        r_e = limits.r_uav + limits.r_safe + voxel_size if self.r_e is None else self.r_e
+        if not r_e < self.R_w:
+            raise ValueError(f"VFHConfig: enlargement radius r_e={r_e:g} must be smaller than R_w={self.R_w:g}")
+        if self.b is None:
+            a, b = weight_constants(self.a, self.R_w, r_e, self.weight_relation, voxel_size)
+        else:
+            a, b = self.a, self.b
+            if not a - b * (self.R_w - r_e) > 0.0:
+                raise ValueError(f"VFHConfig: a={a:g}, b={b:g} make voxels at the region edge weigh "
+                                 f"{a - b * (self.R_w - r_e):g}; expected a positive weight")
+        extra = limits.r_uav if self.neighbour_r_extra is None else self.neighbour_r_extra
+        return r_e, a, b, extra
+
+
+@dataclass
+class VFHState:
+    """Per-UAV memory between cycles: the binary histogram (hysteresis) and the last selected direction."""
+
+    binary: np.ndarray | None = None
+    previous_dir: np.ndarray | None = None
+
+    def reset(self) -> None:
+        self.binary = None
+        self.previous_dir = None
+
+
+@dataclass
+class VFHResult:
+    """One cycle's outcome. When ``blocked`` (no open window) azimuth, elevation and direction are NaN."""
+
+    blocked: bool
+    azimuth: float
+    elevation: float
+    direction: np.ndarray
+    emergency: bool
+    primary: np.ndarray
+    binary: np.ndarray
+    masked: np.ndarray
+    n_candidates: int
+
+
+@numba.njit(cache=True)
+def _turning_kernel(centres, probs, r_e, pos, psi, r_t, R_w):
+    """(delta_R, delta_L): nearest blocked offsets from psi on each side among the active voxels (spec (f3))."""
+    s = r_t * math.sin(psi)
+    c = r_t * math.cos(psi)
+    delta_r, delta_l = -math.pi, math.pi
+    for i in range(centres.shape[0]):
+        qx = centres[i, 0] - pos[0]
+        qy = centres[i, 1] - pos[1]
+        qz = centres[i, 2] - pos[2]
+        if abs(qz) > r_e[i] or probs[i] <= 0.5 or qx * qx + qy * qy + qz * qz > R_w * R_w:
+            continue
+        reach = r_t + r_e[i]
+        delta = wrap(math.atan2(qy, qx) - psi)
+        if delta < 0.0:
+            if delta > delta_r and math.hypot(qx - s, qy + c) < reach:
+                delta_r = delta
+        elif delta < delta_l and math.hypot(qx + s, qy - c) < reach:
+            delta_l = delta
+    return delta_r, delta_l
+
+
+def turning_limits(centres, pos, psi: float, v: float, limits: UAVLimits, r_e) -> tuple[float, float]:
+    """Right/left limit offsets (delta_R, delta_L) from the heading psi (spec (f3)).
+
+    An active voxel within r_e of the flight level that overlaps the enlarged right (left) turning
+    circle, centre r_t (sin psi, -cos psi) (resp. r_t (-sin psi, cos psi)), closes every azimuth beyond
+    it on that side. Hovering (r_t < 1 mm) restricts nothing: a multirotor can yaw in place.
+    ``centres`` are the active voxels; ``r_e`` is a scalar or one radius per voxel.
+    """
+    centres = np.ascontiguousarray(centres, dtype=np.float64)
+    if centres.ndim != 2 or centres.shape[1] != 3:
+        raise ValueError(f"centres: expected shape (M, 3), got {centres.shape}")
+    radii = np.ascontiguousarray(np.broadcast_to(np.asarray(r_e, dtype=np.float64), centres.shape[:1]))
+    return _turning(centres, np.ones(centres.shape[0]), radii, np.asarray(pos, dtype=np.float64), psi, v,
+                    limits, math.inf)
+
+
+def _turning(centres, probs, radii, pos, psi, v, limits: UAVLimits, R_w):
+    if not v >= 0.0:
+        raise ValueError(f"v={v!r}: expected a non-negative forward speed")
+    r_t = v / limits.w_max
+    if r_t < 1e-3:
+        return -math.pi, math.pi
+    return _turning_kernel(centres, probs, radii, pos, float(psi), r_t, float(R_w))
+
+
+@numba.njit(cache=True)
+def _mask_kernel(binary, psi, delta_r, delta_l, e_max, z, R_w, z_min, z_max, cell, masked):
+    n_e, n_z = binary.shape
+    restrict = delta_r > -math.pi or delta_l < math.pi
+    azimuth_closed = np.zeros(n_z, dtype=np.bool_)
+    if restrict:
+        for col in range(n_z):
+            offset = wrap((col + 0.5) * cell - psi)
+            azimuth_closed[col] = not (delta_r < offset < delta_l)
+    for e in range(n_e):
+        el = -0.5 * math.pi + (e + 0.5) * cell
+        reach = z + R_w * math.sin(el)
+        row_closed = (abs(el) > e_max + 1e-12 or (el < 0.0 and reach <= z_min)
+                      or (el > 0.0 and reach >= z_max))
+        for col in range(n_z):
+            masked[e, col] = 1 if row_closed or azimuth_closed[col] or binary[e, col] != 0 else 0
+
+
+def masked_histogram(binary, psi: float, delta_R: float, delta_L: float, e_max: float, z: float, R_w: float,
+                     limits: UAVLimits, cell: float) -> np.ndarray:
+    """Masked histogram H^m (uint8, 1 = closed) of spec (f5).
+
+    A cell stays open only if it is free in ``binary``, its azimuth offset from psi lies strictly
+    between the turning limits, |elevation| <= e_max, and its centre ray does not reach z_min
+    (downward) or z_max (upward) within R_w of altitude ``z``.
+    """
+    shape = histogram_shape(cell)
+    binary = np.ascontiguousarray(binary, dtype=np.uint8)
+    if binary.shape != shape:
+        raise ValueError(f"binary: expected shape {shape} for cell={cell!r}, got {binary.shape}")
+    masked = np.empty(shape, dtype=np.uint8)
+    _mask_kernel(binary, float(psi), float(delta_R), float(delta_L), float(e_max), float(z), float(R_w),
+                 limits.z_min, limits.z_max, float(cell), masked)
+    return masked
+
+
+def update_binary(primary, previous_binary, tau_low: float, tau_high: float) -> np.ndarray:
+    """Binary histogram with hysteresis (spec (f4), eq. 18): cells between the thresholds keep their last value."""
+    if not 0.0 <= tau_low <= tau_high:
+        raise ValueError(f"tau_low={tau_low!r}, tau_high={tau_high!r}: expected 0 <= tau_low <= tau_high")
+    primary = np.asarray(primary, dtype=np.float64)
+    if previous_binary is None:
+        binary = np.zeros(primary.shape, dtype=np.uint8)
+    else:
+        if np.shape(previous_binary) != primary.shape:
+            raise ValueError(f"previous_binary: expected shape {primary.shape}, got {np.shape(previous_binary)}")
+        binary = np.array(previous_binary, dtype=np.uint8)
+    binary[primary > tau_high] = 1
+    binary[primary < tau_low] = 0
+    return binary
+
+
+@numba.njit(cache=True)
+def _select_kernel(masked, win, units, refs, weights, extra, cell, window_open):
+    """Open-window test (spec (f6)) and the cheapest open cell; returns (n_open, row, column, cost).
+
+    The rectangle test is separable: a circular pass along each row, then a pass along each column
+    where rows beyond the poles count as free. The cost of an open cell is extra[cell] plus
+    weights[k] * angle(cell, refs[k]) / cell for every reference unit vector.
+    """
+    n_e, n_z = masked.shape
+    along_row = np.empty((n_e, n_z), dtype=np.bool_)
+    for e in range(n_e):
+        for col in range(n_z):
+            free = True
+            for s in range(-win, win + 1):
+                if masked[e, (col + s) % n_z] != 0:
+                    free = False
+                    break
+            along_row[e, col] = free
+    n_open, best_e, best_z, best_cost = 0, -1, -1, np.inf
+    for e in range(n_e):
+        for col in range(n_z):
+            free = True
+            for r in range(max(e - win, 0), min(e + win, n_e - 1) + 1):
+                if not along_row[r, col]:
+                    free = False
+                    break
+            window_open[e, col] = free
+            if not free:
+                continue
+            n_open += 1
+            cost = extra[e, col]
+            for k in range(refs.shape[0]):
+                dot = units[e, col, 0] * refs[k, 0] + units[e, col, 1] * refs[k, 1] + units[e, col, 2] * refs[k, 2]
+                cost += weights[k] * math.acos(min(1.0, max(-1.0, dot))) / cell
+            if cost < best_cost:
+                best_e, best_z, best_cost = e, col, cost
+    return n_open, best_e, best_z, best_cost
+
+
+def open_cells(masked, win: int) -> np.ndarray:
+    """Cells whose whole (2 win + 1)^2 window is free in ``masked`` (azimuth wraps; rows beyond the poles are free)."""
+    masked = np.ascontiguousarray(masked, dtype=np.uint8)
+    if masked.ndim != 2 or masked.shape[1] != 2 * masked.shape[0]:
+        raise ValueError(f"masked: expected an (N_e, 2 N_e) histogram, got shape {masked.shape}")
+    if isinstance(win, bool) or not isinstance(win, int) or win < 0:
+        raise ValueError(f"win={win!r}: expected a non-negative integer")
+    units = cell_geometry(math.pi / masked.shape[0])[2]
+    window_open = np.empty(masked.shape, dtype=np.bool_)
+    _select_kernel(masked, win, units, np.zeros((0, 3)), np.zeros(0), np.zeros(masked.shape), 1.0, window_open)
+    return window_open
+
+
+@numba.njit(cache=True)
+def _passage_kernel(weights, e0, z0, out):
+    """Minimum monotone path sum from (e0, z0) to every cell, one DP per quadrant (spec (f7))."""
+    n_e, n_z = weights.shape
+    half = n_z // 2
+    dp = np.empty((n_e, half + 1))
+    out[:, :] = np.inf
+    for se in (-1, 1):
+        n_rows = n_e - e0 if se > 0 else e0 + 1
+        for sz in (-1, 1):
+            for i in range(n_rows):
+                e = e0 + se * i
+                for j in range(half + 1):
+                    z = (z0 + sz * j) % n_z
+                    best = 0.0 if i == 0 and j == 0 else np.inf
+                    if i > 0:
+                        best = dp[i - 1, j]
+                    if j > 0 and dp[i, j - 1] < best:
+                        best = dp[i, j - 1]
+                    dp[i, j] = best + weights[e, z]
+                    if dp[i, j] < out[e, z]:
+                        out[e, z] = dp[i, j]
+
+
+def passage_cost(primary, current_cell) -> np.ndarray:
+    """P(c): the least obstacle mass summed along a monotone cell path from ``current_cell`` to c (spec (f7)).
+
+    Paths step one row or one column at a time away from the current cell, the azimuth the shorter
+    way round, and include both end cells (the grid minimum-path-sum recurrence).
+    """
+    weights = np.ascontiguousarray(primary, dtype=np.float64)
+    if weights.ndim != 2:
+        raise ValueError(f"primary: expected a 2D histogram, got shape {weights.shape}")
+    e0, z0 = int(current_cell[0]), int(current_cell[1])
+    if not (0 <= e0 < weights.shape[0] and 0 <= z0 < weights.shape[1]):
+        raise ValueError(f"current_cell={tuple(current_cell)!r}: expected a cell inside {weights.shape}")
+    out = np.empty_like(weights)
+    _passage_kernel(weights, e0, z0, out)
+    return out
+
+
+# Binning a single direction is cheaper in plain Python than through the numba dispatcher;
+# ``py_func`` is the same source, so the rule stays the one of the histogram kernel.
+_cell_of = cell_index.py_func
+
+
+def _direction_cell(direction, name: str, cell: float, n_e: int, n_z: int) -> tuple[int, int]:
+    try:
+        dx, dy, dz = (float(c) for c in direction)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}={direction!r}: expected a 3-vector") from None
+    if not (math.isfinite(dx) and math.isfinite(dy) and math.isfinite(dz)) or dx == dy == dz == 0.0:
+        raise ValueError(f"{name}={direction!r}: expected a finite, non-zero 3-vector")
+    return _cell_of(dx, dy, dz, cell, n_e, n_z, 0.0)
+
+
+def _select(masked, target_dir, current_dir, previous_dir, cfg: VFHConfig, primary):
+    """(cell or None, cost, n_open): the cheapest open cell under the cost of spec (f6)-(f7)."""
+    n_e, n_z = masked.shape
+    cell = cfg.alpha_h
+    target = _direction_cell(target_dir, "target_dir", cell, n_e, n_z)
+    current = _direction_cell(current_dir, "current_dir", cell, n_e, n_z)
+    previous = target if previous_dir is None else _direction_cell(previous_dir, "previous_dir", cell, n_e, n_z)
+    # Merge references that share a cell: one angle per distinct cell (steady flight has one).
+    weight_of = {}
+    for weight, ref in ((cfg.k1, target), (cfg.k2, current), (cfg.k3, previous)):
+        if weight:
+            weight_of[ref] = weight_of.get(ref, 0.0) + weight
+    units = cell_geometry(cell)[2]
+    refs = np.array([units[ref] for ref in weight_of]).reshape(-1, 3)
+    if cfg.k4:
+        if primary is None:
+            raise ValueError("primary: the primary histogram is needed when VFHConfig.k4 > 0")
+        passage = passage_cost(primary, current)
+        extra = cfg.k4 * passage / (1.0 + passage.max())
+    else:
+        extra = _zeros(n_e, n_z)
+    window_open = np.empty((n_e, n_z), dtype=np.bool_)
+    n_open, row, col, cost = _select_kernel(masked, cfg.win, units, refs, np.array(list(weight_of.values())),
+                                            extra, cell, window_open)
+    if n_open == 0:
+        return None, math.inf, 0
+    return (row, col), cost, n_open
+
+
+@functools.lru_cache(maxsize=8)
+def _zeros(n_e: int, n_z: int) -> np.ndarray:
+    zeros = np.zeros((n_e, n_z))
+    zeros.flags.writeable = False
+    return zeros
+
+
+def select_direction(masked, target_dir, current_dir, previous_dir, cfg: VFHConfig, primary=None):
+    """((row, column), cost) of the cheapest open cell, or (None, inf) when no window is open (spec (f6), (f7)).
+
+    A cell is open when its whole (2 win + 1)^2 window is free in ``masked`` (azimuth wraps, rows
+    beyond the poles count as free). Reference directions are world-frame 3-vectors converted to
+    their cells; the angular distance is the true angle between cell-centre unit vectors, in cells.
+    ``previous_dir`` None means the first cycle (the target stands in). ``primary`` is needed only
+    when ``cfg.k4 > 0``.
+    """
+    masked = np.ascontiguousarray(masked, dtype=np.uint8)
+    expected = histogram_shape(cfg.alpha_h)
+    if masked.shape != expected:
+        raise ValueError(f"masked: expected shape {expected} for alpha_h, got {masked.shape}")
+    cell, cost, _ = _select(masked, target_dir, current_dir, previous_dir, cfg, primary)
+    return cell, cost
+
+
+def vfh3d_step(state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos, psi: float, v: float, vz: float,
+               target_dir, voxel_centres, voxel_probs, voxel_size: float, neighbour_positions=None) -> VFHResult:
+    """One 3D VFH+ cycle for one UAV; updates ``state`` (binary histogram, and the selection if not blocked).
+
+    ``voxel_centres`` / ``voxel_probs`` are the occupied voxels around ``pos`` (e.g. from
+    ``OccupancyMap.occupied_in_sphere(pos, cfg.R_w)``); neighbour UAVs (K, 3) become pseudo-voxels
+    with o = 1 and enlargement r_e + neighbour_r_extra (spec (g6)).
+    """
+    r_e, a, b, extra = cfg.resolve(limits, voxel_size)
+    pos = np.ascontiguousarray(pos, dtype=np.float64)
+    centres = np.ascontiguousarray(voxel_centres, dtype=np.float64).reshape(-1, 3)
+    probs = np.ascontiguousarray(voxel_probs, dtype=np.float64)
+    if pos.shape != (3,) or probs.shape != centres.shape[:1]:
+        raise ValueError(f"pos {pos.shape}, voxel_centres {centres.shape}, voxel_probs {probs.shape}: "
+                         "expected (3,), (M, 3) and (M,)")
+    radii = np.full(centres.shape[0], r_e)
+    if neighbour_positions is not None and len(neighbour_positions):
+        others = np.asarray(neighbour_positions, dtype=np.float64).reshape(-1, 3)
+        centres = np.concatenate([centres, others])
+        probs = np.concatenate([probs, np.ones(others.shape[0])])
+        radii = np.concatenate([radii, np.full(others.shape[0], r_e + extra)])
+    primary, emergency = primary_histogram(centres, probs, radii, pos, cfg.alpha_h, cfg.R_w, a, b,
+                                           cfg.enlarge_mode)
+    binary = update_binary(primary, state.binary, cfg.tau_low, cfg.tau_high)
+    state.binary = binary
+    delta_r, delta_l = _turning(centres, probs, radii, pos, psi, v, limits, cfg.R_w)
+    masked = masked_histogram(binary, psi, delta_r, delta_l, limits.climb_angle_limit(v), float(pos[2]),
+                              cfg.R_w, limits, cfg.alpha_h)
+    gamma = math.atan2(vz, max(v, 1e-3))
+    current_dir = (math.cos(psi) * math.cos(gamma), math.sin(psi) * math.cos(gamma), math.sin(gamma))
+    cell, _, n_candidates = _select(masked, target_dir, current_dir, state.previous_dir, cfg, primary)
+    if cell is None:
+        nan = math.nan
+        return VFHResult(True, nan, nan, np.full(3, nan), emergency, primary, binary, masked, n_candidates)
+    elevation, azimuth, units = cell_geometry(cfg.alpha_h)
+    direction = units[cell].copy()
+    state.previous_dir = direction
+    az = float(azimuth[cell[1]])
+    return VFHResult(False, az - 2.0 * math.pi if az > math.pi else az, float(elevation[cell[0]]), direction, emergency,
+                     primary, binary, masked, n_candidates)
