@@ -1,0 +1,113 @@
+"""Voxel keys and the 3D-DDA ray traversal (Amanatides-Woo) shared by the range sensor and the map.
+
+Keys follow OctoMap exactly, so our grids compare voxel by voxel with ``octomap-python``:
+
+* ``key = floor(coordinate * (1 / res))``: OctoMap multiplies by the cached reciprocal
+  (``coordToKey``); dividing by ``res`` instead puts points that lie on a voxel border on the other
+  side (``1.2 / 0.1`` floors to 11, ``1.2 * (1 / 0.1)`` to 12).
+* A grid whose lower corner is ``origin = key0 * res`` stores key ``k`` at index ``k - key0``
+  (docs/CONVENTIONS.md), i.e. OctoMap's key grid shifted by its constant ``tree_max_val``.
+* The traversal set-up and its tie-breaking copy ``OcTreeBaseImpl::computeRayKeys`` (the voxel
+  border is the voxel centre plus ``(float)(step * res / 2)``, ties go to the later axis).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+# Relative tolerance for "origin is a multiple of res" (absorbs decimal round-off such as 0.1 * 3).
+_ORIGIN_TOL = 1e-6
+
+
+def grid_origin_key(origin, res: float, name: str = "origin") -> np.ndarray:
+    """The key (int64 (3,)) of a grid's lower corner; ValueError unless it is a multiple of ``res``."""
+    if isinstance(res, bool) or not isinstance(res, (int, float, np.floating)) or not math.isfinite(res) or res <= 0:
+        raise ValueError(f"res={res!r}: expected a finite voxel size > 0")
+    o = np.asarray(origin, dtype=np.float64)
+    if o.shape != (3,) or not np.all(np.isfinite(o)):
+        raise ValueError(f"{name}={origin!r}: expected 3 finite coordinates (x, y, z)")
+    key = np.round(o / res)
+    if np.any(np.abs(o / res - key) > _ORIGIN_TOL):
+        raise ValueError(f"{name}={o.tolist()}: expected a multiple of the voxel size {res!r} "
+                         "(voxel centres must coincide with OctoMap's)")
+    return key.astype(np.int64)
+
+
+@numba.njit(cache=True, inline="always")
+def coord_key(x, inv_res):
+    """OctoMap's coordToKey along one axis (without the tree offset)."""
+    return np.int64(math.floor(x * inv_res))
+
+
+@numba.njit(cache=True, inline="always")
+def axis_setup(o, d, key, res):
+    """Along one axis: step (-1, 0, 1), ray length to the first voxel border, border spacing."""
+    if d > 0.0:
+        step = 1
+    elif d < 0.0:
+        step = -1
+    else:
+        return 0, np.inf, np.inf
+    border = (key + 0.5) * res + step * np.float64(np.float32(res * 0.5))
+    return step, (border - o) / d, res / abs(d)
+
+
+@numba.njit(cache=True, inline="always")
+def next_axis(tx, ty, tz):
+    """The axis whose border the ray crosses next (OctoMap's comparison order for ties)."""
+    if tx < ty:
+        return 0 if tx < tz else 2
+    return 1 if ty < tz else 2
+
+
+@numba.njit(cache=True, inline="always")
+def ray_key_bound(ox, oy, oz, ex, ey, ez, inv_res):
+    """Upper bound on the number of keys ``ray_keys`` returns for one segment (buffer sizing)."""
+    return (abs(coord_key(ex, inv_res) - coord_key(ox, inv_res)) + abs(coord_key(ey, inv_res) - coord_key(oy, inv_res))
+            + abs(coord_key(ez, inv_res) - coord_key(oz, inv_res)) + 4)
+
+
+@numba.njit(cache=True)
+def ray_keys(ox, oy, oz, ex, ey, ez, res, out):
+    """Port of OctoMap's ``computeRayKeys(origin, end)``: the keys of the voxels the segment crosses.
+
+    The coordinates must already be float32 values (OctoMap's ``point3d`` is float); the direction
+    and length are formed in float32 as in OctoMap. The origin voxel comes first; the end voxel is
+    never included; a ray stops early once it is longer than the segment (OctoMap's guard against
+    drift). Writes the keys to ``out`` (K, 3) int64 and returns K.
+    """
+    inv_res = 1.0 / res
+    kx, ky, kz = coord_key(ox, inv_res), coord_key(oy, inv_res), coord_key(oz, inv_res)
+    ekx, eky, ekz = coord_key(ex, inv_res), coord_key(ey, inv_res), coord_key(ez, inv_res)
+    if kx == ekx and ky == eky and kz == ekz:
+        return 0
+    out[0, 0], out[0, 1], out[0, 2] = kx, ky, kz
+    n = 1
+    dx = np.float32(ex) - np.float32(ox)
+    dy = np.float32(ey) - np.float32(oy)
+    dz = np.float32(ez) - np.float32(oz)
+    length = np.float32(math.sqrt(np.float64(dx * dx + dy * dy + dz * dz)))
+    dx, dy, dz = dx / length, dy / length, dz / length
+    sx, tx, ddx = axis_setup(ox, np.float64(dx), kx, res)
+    sy, ty, ddy = axis_setup(oy, np.float64(dy), ky, res)
+    sz, tz, ddz = axis_setup(oz, np.float64(dz), kz, res)
+    while True:
+        axis = next_axis(tx, ty, tz)
+        if axis == 0:
+            kx += sx
+            tx += ddx
+        elif axis == 1:
+            ky += sy
+            ty += ddy
+        else:
+            kz += sz
+            tz += ddz
+        if kx == ekx and ky == eky and kz == ekz:
+            return n
+        if min(tx, ty, tz) > length:
+            return n
+        out[n, 0], out[n, 1], out[n, 2] = kx, ky, kz
+        n += 1

@@ -1,0 +1,220 @@
+"""Simulated range sensor: an azimuth x elevation fan of rays cast from every UAV at once.
+
+Rays are traced through the world's voxel grid with the 3D-DDA of ``dda`` (the same key grid and
+traversal as the onboard OctoMap), against the ground (z < 0 is solid) and against the other UAVs
+(spheres). One numba call covers all UAVs and all rays.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from .config import SensorConfig
+from .dda import axis_setup, coord_key, grid_origin_key, next_axis
+
+# Hit kinds of a ray.
+NOTHING, STATIC, UAV = 0, 1, 2
+# Golden-ratio step of the interleaved azimuth offset (in units of one azimuth spacing).
+_GOLDEN = 0.6180339887
+# A static-hit endpoint is pulled this fraction of a voxel inside the hit voxel, so looking it up
+# (also after OctoMap's float32 rounding) always returns the hit voxel.
+_ENDPOINT_INSET = 1e-3
+
+
+@dataclass(frozen=True)
+class Scan:
+    """One scan of N UAVs with R rays each (world frame).
+
+    ``kind``: 0 nothing within r_max (range = r_max), 1 static obstacle or ground, 2 another UAV.
+    ``endpoints`` = origin + direction * range; for kind 1 the endpoint lies just inside the hit
+    voxel (for ground hits: just below z = 0), so voxel lookups of hits are robust.
+    """
+
+    directions: np.ndarray  # (N, R, 3) float64 unit vectors
+    ranges: np.ndarray      # (N, R) float64
+    kind: np.ndarray        # (N, R) int8
+    endpoints: np.ndarray   # (N, R, 3) float64
+
+
+class RangeSensor:
+    """Ray-casting range sensor with ``cfg.n_azimuth x cfg.n_elevation`` rays per UAV.
+
+    Ray r = i_az * n_elevation + i_el points at azimuth ``i_az * 2 pi / n_az`` (+ yaw, + the
+    interleave offset) and elevation ``i_el``-th of n_el values evenly spaced over
+    [elevation_min, elevation_max] (a single row looks level).
+    """
+
+    def __init__(self, cfg: SensorConfig):
+        if not isinstance(cfg, SensorConfig):
+            raise ValueError(f"cfg: expected a SensorConfig, got {type(cfg).__name__}")
+        self.cfg = cfg
+        if cfg.n_elevation == 1:
+            elevations = np.zeros(1)
+        else:
+            elevations = np.linspace(cfg.elevation_min, cfg.elevation_max, cfg.n_elevation)
+        self._azimuths = np.repeat(np.arange(cfg.n_azimuth) * (2.0 * math.pi / cfg.n_azimuth), cfg.n_elevation)
+        self._elevations = np.tile(elevations, cfg.n_azimuth)
+
+    @property
+    def n_rays(self) -> int:
+        return self.cfg.n_rays
+
+    def _azimuth_offset(self, step: int) -> float:
+        """Interleave: rotate the fan by frac(step * golden) of one azimuth spacing."""
+        if not self.cfg.interleave:
+            return 0.0
+        return math.modf(step * _GOLDEN)[0] * (2.0 * math.pi / self.cfg.n_azimuth)
+
+    def _unit_vectors(self, azimuths: np.ndarray) -> np.ndarray:
+        cos_el = np.cos(self._elevations)
+        return np.stack([cos_el * np.cos(azimuths), cos_el * np.sin(azimuths),
+                         np.broadcast_to(np.sin(self._elevations), azimuths.shape)], axis=-1)
+
+    def directions(self, step: int) -> np.ndarray:
+        """Body-frame unit ray directions (R, 3) used at simulation step ``step``."""
+        step = _check_step(step)
+        return self._unit_vectors(self._azimuths + self._azimuth_offset(step))
+
+    def scan(self, occupied: np.ndarray, origin, res: float, positions: np.ndarray, yaws: np.ndarray,
+             step: int, uav_radius: float, rng: np.random.Generator | None = None) -> Scan:
+        """Cast every UAV's rays through ``occupied`` (uint8 (nx, ny, nz), lower corner ``origin``).
+
+        Outside the grid is free space except z < 0 (ground). Every UAV is a sphere of
+        ``uav_radius`` seen by the others. With ``cfg.noise_std > 0`` each kind 1/2 range gets
+        Gaussian noise from ``rng`` (its endpoint moves along the ray by the same amount).
+        """
+        occupied = np.asarray(occupied)
+        if occupied.ndim != 3 or occupied.dtype != np.uint8:
+            raise ValueError(f"occupied: expected a 3D uint8 grid, got {occupied.dtype} with shape {occupied.shape}")
+        key0 = grid_origin_key(origin, res)
+        positions = np.ascontiguousarray(positions, dtype=np.float64)
+        if positions.ndim != 2 or positions.shape[1] != 3 or not np.all(np.isfinite(positions)):
+            raise ValueError(f"positions: expected finite (N, 3) coordinates, got shape {positions.shape}")
+        yaws = np.asarray(yaws, dtype=np.float64)
+        if yaws.shape != (positions.shape[0],) or not np.all(np.isfinite(yaws)):
+            raise ValueError(f"yaws: expected {positions.shape[0]} finite angles (one per position), got shape {yaws.shape}")
+        if isinstance(uav_radius, bool) or not np.isfinite(uav_radius) or uav_radius < 0:
+            raise ValueError(f"uav_radius={uav_radius!r}: expected a finite radius >= 0")
+        step = _check_step(step)
+        noisy = self.cfg.noise_std > 0.0
+        if noisy and not isinstance(rng, np.random.Generator):
+            raise ValueError(f"rng: expected a numpy Generator when SensorConfig.noise_std > 0, got {type(rng).__name__}")
+
+        world_azimuths = self._azimuths[None, :] + self._azimuth_offset(step) + yaws[:, None]
+        dirs = np.ascontiguousarray(self._unit_vectors(world_azimuths))
+        n, r = dirs.shape[:2]
+        ranges = np.empty((n, r))
+        kind = np.empty((n, r), np.int8)
+        endpoints = np.empty((n, r, 3))
+        _cast_rays(np.ascontiguousarray(occupied), key0, float(res), positions, dirs, float(self.cfg.r_max),
+                   float(uav_radius), ranges, kind, endpoints)
+        if noisy:
+            noise = rng.normal(0.0, self.cfg.noise_std, size=(n, r))
+            noise[kind == NOTHING] = 0.0
+            noise = np.maximum(noise, -ranges)  # a range never turns negative
+            ranges += noise
+            endpoints += dirs * noise[..., None]
+        return Scan(directions=dirs, ranges=ranges, kind=kind, endpoints=endpoints)
+
+
+def _check_step(step) -> int:
+    if isinstance(step, bool) or not isinstance(step, (int, np.integer)):
+        raise ValueError(f"step={step!r}: expected an integer simulation step")
+    return int(step)
+
+
+@numba.njit(cache=True, inline="always")
+def _inset(x, key, res):
+    """Clamp a coordinate into voxel ``key`` along one axis, a small margin inside its faces."""
+    margin = _ENDPOINT_INSET * res
+    return min(max(x, key * res + margin), (key + 1) * res - margin)
+
+
+@numba.njit(cache=True)
+def _cast_rays(occupied, key0, res, positions, dirs, r_max, uav_radius, ranges, kind, endpoints):
+    """Fill ranges, kind and endpoints for every (UAV, ray); see ``RangeSensor.scan``."""
+    nx, ny, nz = occupied.shape
+    inv_res = 1.0 / res
+    n_uav, n_ray = dirs.shape[0], dirs.shape[1]
+    for a in range(n_uav):
+        ox, oy, oz = positions[a, 0], positions[a, 1], positions[a, 2]
+        okx, oky, okz = coord_key(ox, inv_res), coord_key(oy, inv_res), coord_key(oz, inv_res)
+        for r in range(n_ray):
+            dx, dy, dz = dirs[a, r, 0], dirs[a, r, 1], dirs[a, r, 2]
+            # Nearest non-grid obstacle within r_max: another UAV, then the ground (which wins ties).
+            t_lim = r_max
+            lim_kind = NOTHING
+            if uav_radius > 0.0:
+                for b in range(n_uav):
+                    if b == a:
+                        continue
+                    cx, cy, cz = positions[b, 0] - ox, positions[b, 1] - oy, positions[b, 2] - oz
+                    c = cx * cx + cy * cy + cz * cz - uav_radius * uav_radius
+                    proj = cx * dx + cy * dy + cz * dz
+                    if c <= 0.0:
+                        t = 0.0  # inside the other UAV's sphere
+                    else:
+                        disc = proj * proj - c
+                        if proj <= 0.0 or disc < 0.0:
+                            continue
+                        t = proj - math.sqrt(disc)
+                    if t < t_lim:
+                        t_lim = t
+                        lim_kind = UAV
+            ground = False
+            if oz < 0.0 or dz < 0.0:
+                t_ground = 0.0 if oz < 0.0 else -oz / dz
+                if t_ground <= t_lim:
+                    t_lim = t_ground
+                    ground = True
+            # First occupied grid voxel entered at a distance <= t_lim.
+            kx, ky, kz = okx, oky, okz
+            t_hit = -1.0
+            i, j, k = kx - key0[0], ky - key0[1], kz - key0[2]
+            if 0 <= i < nx and 0 <= j < ny and 0 <= k < nz and occupied[i, j, k]:
+                t_hit = 0.0
+            else:
+                sx, tx, ddx = axis_setup(ox, dx, kx, res)
+                sy, ty, ddy = axis_setup(oy, dy, ky, res)
+                sz, tz, ddz = axis_setup(oz, dz, kz, res)
+                while True:
+                    axis = next_axis(tx, ty, tz)
+                    if axis == 0:
+                        t = tx
+                        kx += sx
+                        tx += ddx
+                    elif axis == 1:
+                        t = ty
+                        ky += sy
+                        ty += ddy
+                    else:
+                        t = tz
+                        kz += sz
+                        tz += ddz
+                    if t > t_lim:
+                        break
+                    i, j, k = kx - key0[0], ky - key0[1], kz - key0[2]
+                    if 0 <= i < nx and 0 <= j < ny and 0 <= k < nz and occupied[i, j, k]:
+                        t_hit = t
+                        break
+            if t_hit >= 0.0 or ground:
+                t = t_hit if t_hit >= 0.0 else t_lim
+                px, py, pz = ox + dx * t, oy + dy * t, oz + dz * t
+                if t_hit < 0.0:  # the ground voxel below the hit point
+                    kx, ky, kz = coord_key(px, inv_res), coord_key(py, inv_res), -1
+                ranges[a, r] = t
+                kind[a, r] = STATIC
+                endpoints[a, r, 0] = _inset(px, kx, res)
+                endpoints[a, r, 1] = _inset(py, ky, res)
+                endpoints[a, r, 2] = _inset(pz, kz, res)
+            else:
+                t = t_lim if lim_kind == UAV else r_max
+                ranges[a, r] = t
+                kind[a, r] = lim_kind
+                endpoints[a, r, 0] = ox + dx * t
+                endpoints[a, r, 1] = oy + dy * t
+                endpoints[a, r, 2] = oz + dz * t
