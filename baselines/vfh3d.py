@@ -152,7 +152,7 @@ def turning_limits(centres, pos, psi: float, v: float, limits: UAVLimits, r_e) -
     if centres.ndim != 2 or centres.shape[1] != 3:
         raise ValueError(f"centres: expected shape (M, 3), got {centres.shape}")
     radii = np.ascontiguousarray(np.broadcast_to(np.asarray(r_e, dtype=np.float64), centres.shape[:1]))
-    return _turning(centres, np.ones(centres.shape[0]), radii, np.asarray(pos, dtype=np.float64), psi, v,
+    return _turning(centres, np.ones(centres.shape[0]), radii, np.ascontiguousarray(pos, dtype=np.float64), psi, v,
                     limits, math.inf)
 
 
@@ -221,28 +221,34 @@ def update_binary(primary, previous_binary, tau_low: float, tau_high: float) -> 
 def _select_kernel(masked, win, units, refs, weights, extra, cell, window_open):
     """Open-window test (spec (f6)) and the cheapest open cell; returns (n_open, row, column, cost).
 
-    The rectangle test is separable: a circular pass along each row, then a pass along each column
-    where rows beyond the poles count as free. The cost of an open cell is extra[cell] plus
-    weights[k] * angle(cell, refs[k]) / cell for every reference unit vector.
+    The rectangle test is separable: a circular pass along each row, then a pass down the rows where
+    rows beyond the poles count as free; both slide a count of closed cells instead of rescanning.
+    The cost of an open cell is extra[cell] + sum_k weights[k] * angle(cell, refs[k]) / cell, with
+    weights > 0 in decreasing order. Cells whose first term alone exceeds the best cost so far are
+    skipped with one dot product (extra >= 0, so every term is >= 0), which saves most arc cosines
+    in open space.
     """
     n_e, n_z = masked.shape
-    along_row = np.empty((n_e, n_z), dtype=np.bool_)
+    row_closed = np.empty((n_e, n_z), dtype=np.int64)  # closed cells among columns col - win .. col + win
     for e in range(n_e):
+        closed = 0
+        for s in range(-win, win + 1):
+            closed += masked[e, s % n_z] != 0
+        enter, leave = (win + 1) % n_z, (n_z - win % n_z) % n_z
         for col in range(n_z):
-            free = True
-            for s in range(-win, win + 1):
-                if masked[e, (col + s) % n_z] != 0:
-                    free = False
-                    break
-            along_row[e, col] = free
+            row_closed[e, col] = closed
+            closed += (masked[e, enter] != 0) - (masked[e, leave] != 0)
+            enter = enter + 1 if enter + 1 < n_z else 0
+            leave = leave + 1 if leave + 1 < n_z else 0
+    window_closed = np.zeros(n_z, dtype=np.int64)  # rows with row_closed > 0 among rows e - win .. e + win
+    for r in range(min(win, n_e - 1) + 1):
+        for col in range(n_z):
+            window_closed[col] += row_closed[r, col] != 0
     n_open, best_e, best_z, best_cost = 0, -1, -1, np.inf
+    prune_dot = -2.0  # cells with dot(unit, refs[0]) below this cannot beat best_cost
     for e in range(n_e):
         for col in range(n_z):
-            free = True
-            for r in range(max(e - win, 0), min(e + win, n_e - 1) + 1):
-                if not along_row[r, col]:
-                    free = False
-                    break
+            free = window_closed[col] == 0
             window_open[e, col] = free
             if not free:
                 continue
@@ -250,10 +256,29 @@ def _select_kernel(masked, win, units, refs, weights, extra, cell, window_open):
             cost = extra[e, col]
             for k in range(refs.shape[0]):
                 dot = units[e, col, 0] * refs[k, 0] + units[e, col, 1] * refs[k, 1] + units[e, col, 2] * refs[k, 2]
+                if k == 0 and dot < prune_dot:
+                    cost = np.inf
+                    break
                 cost += weights[k] * math.acos(min(1.0, max(-1.0, dot))) / cell
             if cost < best_cost:
                 best_e, best_z, best_cost = e, col, cost
+                if refs.shape[0] > 0:
+                    prune_dot = math.cos(min(best_cost * cell / weights[0], math.pi))
+        if e + win + 1 < n_e:
+            for col in range(n_z):
+                window_closed[col] += row_closed[e + win + 1, col] != 0
+        if e - win >= 0:
+            for col in range(n_z):
+                window_closed[col] -= row_closed[e - win, col] != 0
     return n_open, best_e, best_z, best_cost
+
+
+@functools.lru_cache(maxsize=8)
+def _zeros(n_e: int, n_z: int) -> np.ndarray:
+    """A shared read-only zero histogram: the no-extra-cost input of ``_select_kernel``."""
+    zeros = np.zeros((n_e, n_z))
+    zeros.flags.writeable = False
+    return zeros
 
 
 def open_cells(masked, win: int) -> np.ndarray:
@@ -265,7 +290,7 @@ def open_cells(masked, win: int) -> np.ndarray:
         raise ValueError(f"win={win!r}: expected a non-negative integer")
     units = cell_geometry(math.pi / masked.shape[0])[2]
     window_open = np.empty(masked.shape, dtype=np.bool_)
-    _select_kernel(masked, win, units, np.zeros((0, 3)), np.zeros(0), np.zeros(masked.shape), 1.0, window_open)
+    _select_kernel(masked, win, units, np.zeros((0, 3)), np.zeros(0), _zeros(*masked.shape), 1.0, window_open)
     return window_open
 
 
@@ -337,28 +362,23 @@ def _select(masked, target_dir, current_dir, previous_dir, cfg: VFHConfig, prima
     for weight, ref in ((cfg.k1, target), (cfg.k2, current), (cfg.k3, previous)):
         if weight:
             weight_of[ref] = weight_of.get(ref, 0.0) + weight
+    ordered = sorted(weight_of, key=weight_of.get, reverse=True)  # the largest weight prunes best
     units = cell_geometry(cell)[2]
-    refs = np.array([units[ref] for ref in weight_of]).reshape(-1, 3)
+    refs = np.array([units[ref] for ref in ordered]).reshape(-1, 3)
     if cfg.k4:
         if primary is None:
             raise ValueError("primary: the primary histogram is needed when VFHConfig.k4 > 0")
         passage = passage_cost(primary, current)
         extra = cfg.k4 * passage / (1.0 + passage.max())
+        extra.flags.writeable = False  # same numba type as _zeros: one compiled kernel, not two
     else:
         extra = _zeros(n_e, n_z)
     window_open = np.empty((n_e, n_z), dtype=np.bool_)
-    n_open, row, col, cost = _select_kernel(masked, cfg.win, units, refs, np.array(list(weight_of.values())),
-                                            extra, cell, window_open)
+    weights = np.array([weight_of[ref] for ref in ordered], dtype=np.float64)
+    n_open, row, col, cost = _select_kernel(masked, cfg.win, units, refs, weights, extra, cell, window_open)
     if n_open == 0:
         return None, math.inf, 0
     return (row, col), cost, n_open
-
-
-@functools.lru_cache(maxsize=8)
-def _zeros(n_e: int, n_z: int) -> np.ndarray:
-    zeros = np.zeros((n_e, n_z))
-    zeros.flags.writeable = False
-    return zeros
 
 
 def select_direction(masked, target_dir, current_dir, previous_dir, cfg: VFHConfig, primary=None):

@@ -193,10 +193,11 @@ def naive_open(masked, win):
     return out
 
 
-@settings(max_examples=20, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), win=st.integers(0, 3), density=st.floats(0.0, 0.2))
-def test_open_windows_match_naive(seed, win, density):
-    masked = (np.random.default_rng(seed).random((12, 24)) < density).astype(np.uint8)
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), win=st.integers(0, 4), density=st.floats(0.0, 0.2),
+       shape=st.sampled_from([(12, 24), (3, 6)]))
+def test_open_windows_match_naive(seed, win, density, shape):
+    masked = (np.random.default_rng(seed).random(shape) < density).astype(np.uint8)
     np.testing.assert_array_equal(open_cells(masked, win), naive_open(masked, win))
 
 
@@ -229,6 +230,39 @@ def test_angular_distance_is_the_true_angle_near_the_pole():
     target = [math.cos(math.radians(82.5)), 0.0, math.sin(math.radians(82.5))]
     cell, cost = select_direction(masked, target, AHEAD, None, VFHConfig(k2=0.0, k3=0.0))
     assert cell == (35, 36) and cost == pytest.approx(5.0 * 10.0 / 5.0)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), density=st.floats(0.0, 0.1), k=st.lists(st.floats(0.0, 6.0), min_size=4,
+                                                                               max_size=4))
+def test_selection_matches_naive_cost(seed, density, k):
+    """The cheapest open cell under k1 D(c, c_t) + k2 D(c, c_cur) + k3 D(c, c_prev) + k4 P/(1 + max P)."""
+    rng = np.random.default_rng(seed)
+    masked = (rng.random((36, 72)) < density).astype(np.uint8)
+    primary = rng.uniform(0.0, 2.0, (36, 72))
+    dirs = rng.normal(size=(3, 3))
+    cfg = VFHConfig(k1=k[0], k2=k[1], k3=k[2], k4=k[3])
+    cell, cost = select_direction(masked, dirs[0], dirs[1], dirs[2], cfg, primary)
+    units = np.stack(np.meshgrid(np.radians(-87.5 + 5.0 * np.arange(36)), np.radians(2.5 + 5.0 * np.arange(72)),
+                                 indexing="ij"), axis=-1)
+    units = np.stack([np.cos(units[..., 0]) * np.cos(units[..., 1]), np.cos(units[..., 0]) * np.sin(units[..., 1]),
+                      np.sin(units[..., 0])], axis=-1)
+
+    def cell_of(d):
+        el = math.degrees(math.atan2(d[2], math.hypot(d[0], d[1])))
+        return min(int((el + 90.0) // 5.0), 35), int((math.degrees(math.atan2(d[1], d[0])) % 360.0) // 5.0)
+
+    naive = np.zeros((36, 72))
+    for weight, d in zip(k[:3], dirs):
+        naive += weight * np.degrees(np.arccos(np.clip(units @ units[cell_of(d)], -1.0, 1.0))) / 5.0
+    passage = passage_cost(primary, cell_of(dirs[1]))
+    naive += k[3] * passage / (1.0 + passage.max())
+    naive[~open_cells(masked, 2)] = np.inf  # the window test is checked against naive_open above
+    if np.isinf(naive.min()):
+        assert cell is None
+    else:
+        tol = 1e-6 * (1.0 + sum(k))  # acos near 1 resolves angles to ~1e-8 rad (2e-7 cells) only
+        assert cost == pytest.approx(naive.min(), abs=tol) and naive[cell] == pytest.approx(naive.min(), abs=tol)
 
 
 def test_reference_directions_are_validated():
