@@ -166,7 +166,8 @@ def primary_histogram(centres, probs, r_e, pos, cell: float, R_w: float, a: floa
     if r_e_arr.ndim == 0:
         r_e_arr = np.full(m, float(r_e_arr))
     if r_e_arr.shape != (m,) or not np.all(r_e_arr > 0.0):
-        raise ValueError(f"r_e: expected a positive scalar or shape ({m},) of positive radii, got {r_e!r}")
+        got = f"shape {r_e_arr.shape}" if r_e_arr.ndim else repr(r_e)
+        raise ValueError(f"r_e: expected a positive scalar or shape ({m},) of positive radii, got {got}")
     pos = np.ascontiguousarray(pos, dtype=np.float64)
     if pos.shape != (3,):
         raise ValueError(f"pos: expected shape (3,), got {pos.shape}")
