@@ -7,8 +7,8 @@ Keys follow OctoMap exactly, so our grids compare voxel by voxel with ``octomap-
   side (``1.2 / 0.1`` floors to 11, ``1.2 * (1 / 0.1)`` to 12).
 * A grid whose lower corner is ``origin = key0 * res`` stores key ``k`` at index ``k - key0``
   (docs/CONVENTIONS.md), i.e. OctoMap's key grid shifted by its constant ``tree_max_val``.
-* The traversal set-up and its tie-breaking copy ``OcTreeBaseImpl::computeRayKeys`` (the voxel
-  border is the voxel centre plus ``(float)(step * res / 2)``, ties go to the later axis).
+* The traversal set-up and its tie-breaking copy ``OcTreeBaseImpl::computeRayKeys`` (ties go to
+  the later axis); ``ray_keys`` also keeps its float32 quirks, the sensor uses exact borders.
 """
 
 from __future__ import annotations
@@ -43,15 +43,19 @@ def coord_key(x, inv_res):
 
 
 @numba.njit(cache=True, inline="always")
-def axis_setup(o, d, key, res):
-    """Along one axis: step (-1, 0, 1), ray length to the first voxel border, border spacing."""
+def axis_setup(o, d, key, res, half):
+    """Along one axis: step (-1, 0, 1), ray length to the first voxel border, border spacing.
+
+    The border is the voxel centre plus ``step * half``: half = res / 2 gives exact borders;
+    OctoMap uses ``(float)(res / 2)`` (see ``ray_keys``).
+    """
     if d > 0.0:
         step = 1
     elif d < 0.0:
         step = -1
     else:
         return 0, np.inf, np.inf
-    border = (key + 0.5) * res + step * np.float64(np.float32(res * 0.5))
+    border = (key + 0.5) * res + step * half
     return step, (border - o) / d, res / abs(d)
 
 
@@ -91,9 +95,10 @@ def ray_keys(ox, oy, oz, ex, ey, ez, res, out):
     dz = np.float32(ez) - np.float32(oz)
     length = np.float32(math.sqrt(np.float64(dx * dx + dy * dy + dz * dz)))
     dx, dy, dz = dx / length, dy / length, dz / length
-    sx, tx, ddx = axis_setup(ox, np.float64(dx), kx, res)
-    sy, ty, ddy = axis_setup(oy, np.float64(dy), ky, res)
-    sz, tz, ddz = axis_setup(oz, np.float64(dz), kz, res)
+    half = np.float64(np.float32(res * 0.5))
+    sx, tx, ddx = axis_setup(ox, np.float64(dx), kx, res, half)
+    sy, ty, ddy = axis_setup(oy, np.float64(dy), ky, res, half)
+    sz, tz, ddz = axis_setup(oz, np.float64(dz), kz, res, half)
     while True:
         axis = next_axis(tx, ty, tz)
         if axis == 0:

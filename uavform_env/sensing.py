@@ -178,9 +178,9 @@ def _cast_rays(occupied, key0, res, positions, dirs, r_max, uav_radius, ranges, 
             if 0 <= i < nx and 0 <= j < ny and 0 <= k < nz and occupied[i, j, k]:
                 t_hit = 0.0
             else:
-                sx, tx, ddx = axis_setup(ox, dx, kx, res)
-                sy, ty, ddy = axis_setup(oy, dy, ky, res)
-                sz, tz, ddz = axis_setup(oz, dz, kz, res)
+                sx, tx, ddx = axis_setup(ox, dx, kx, res, 0.5 * res)
+                sy, ty, ddy = axis_setup(oy, dy, ky, res, 0.5 * res)
+                sz, tz, ddz = axis_setup(oz, dz, kz, res, 0.5 * res)
                 while True:
                     axis = next_axis(tx, ty, tz)
                     if axis == 0:
