@@ -142,30 +142,35 @@ def _box_sdf(boxes, b, px, py, pz):
 
 
 @numba.njit(cache=True, inline="always")
-def _cylinder_sdf(cylinders, c, px, py, pz):
-    dr = math.hypot(px - cylinders[c, 0], py - cylinders[c, 1]) - cylinders[c, 2]
+def _cylinder_sdf(dr, cylinders, c, pz):
+    """Signed distance to cylinder c from a point at height pz whose radial offset from the surface is dr."""
     dz = max(cylinders[c, 3] - pz, pz - cylinders[c, 4])
-    return min(max(dr, dz), 0.0) + math.hypot(max(dr, 0.0), max(dz, 0.0))
-
-
-@numba.njit(cache=True, inline="always")
-def _sphere_sdf(spheres, s, px, py, pz):
-    return math.sqrt((px - spheres[s, 0]) ** 2 + (py - spheres[s, 1]) ** 2 + (pz - spheres[s, 2]) ** 2) \
-        - spheres[s, 3]
+    return min(max(dr, dz), 0.0) + math.sqrt(max(dr, 0.0) ** 2 + max(dz, 0.0) ** 2)
 
 
 @numba.njit(cache=True)
 def _clearance_kernel(points, boxes, cylinders, spheres):
+    """Minimum signed distance over all primitives. A primitive is skipped, without square roots, when a
+    lower bound of its signed distance (largest per-axis gap; horizontal or centre distance minus the
+    radius) cannot beat the best so far."""
     out = np.empty(points.shape[0])
     for p in range(points.shape[0]):
         px, py, pz = points[p, 0], points[p, 1], points[p, 2]
         best = np.inf
         for b in range(boxes.shape[0]):
-            best = min(best, _box_sdf(boxes, b, px, py, pz))
+            if max(boxes[b, 0] - px, px - boxes[b, 3], boxes[b, 1] - py, py - boxes[b, 4],
+                   boxes[b, 2] - pz, pz - boxes[b, 5]) < best:
+                best = min(best, _box_sdf(boxes, b, px, py, pz))
         for c in range(cylinders.shape[0]):
-            best = min(best, _cylinder_sdf(cylinders, c, px, py, pz))
+            reach = best + cylinders[c, 2]
+            d2 = (px - cylinders[c, 0]) ** 2 + (py - cylinders[c, 1]) ** 2
+            if reach > 0.0 and d2 < reach * reach:
+                best = min(best, _cylinder_sdf(math.sqrt(d2) - cylinders[c, 2], cylinders, c, pz))
         for s in range(spheres.shape[0]):
-            best = min(best, _sphere_sdf(spheres, s, px, py, pz))
+            reach = best + spheres[s, 3]
+            d2 = (px - spheres[s, 0]) ** 2 + (py - spheres[s, 1]) ** 2 + (pz - spheres[s, 2]) ** 2
+            if reach > 0.0 and d2 < reach * reach:
+                best = min(best, math.sqrt(d2) - spheres[s, 3])
         out[p] = best
     return out
 
