@@ -161,7 +161,8 @@ def test_heightmap_known_answers():
 
 
 def test_heightmap_of_aligned_boxes_matches_raster():
-    obs = [Box((0.4, 0.6, 0.0), (2.0, 1.4, 3.2)), Box((1.0, 1.0, 1.0), (3.0, 2.0, 4.6)), Box((3.2, 0.2, 0.0), (3.6, 3.0, 0.4))]
+    obs = [Box((0.4, 0.6, 0.0), (2.0, 1.4, 3.2)), Box((1.0, 1.0, 1.0), (3.0, 2.0, 4.6)),
+           Box((3.2, 0.2, 0.0), (3.6, 3.0, 0.4))]
     w = World((0, 0, 0), (4, 4, 6), 0.2, obs)
     _, _, h = w.heightmap(0.2)
     top = np.where(w.occupied.any(axis=2), (w.shape[2] - np.argmax(w.occupied[:, :, ::-1], axis=2)) * 0.2, 0.0)
@@ -200,7 +201,8 @@ def test_primitives_reject_bad_input(make, match):
 
 def test_primitives_store_floats():
     b = Box([0, 0, 0], np.array([1, 2, 3]))
-    assert b == Box((0.0, 0.0, 0.0), (1.0, 2.0, 3.0)) and type(b.lo) is tuple and hash(b) == hash(Box((0, 0, 0), (1, 2, 3)))
+    assert b == Box((0.0, 0.0, 0.0), (1.0, 2.0, 3.0)) and type(b.lo) is tuple
+    assert hash(b) == hash(Box((0, 0, 0), (1, 2, 3)))
     assert type(Cylinder(np.int64(1), 0, 1, 0, 1).x) is float
 
 
