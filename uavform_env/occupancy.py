@@ -160,7 +160,7 @@ class OccupancyMap:
 
     def occupied_in_sphere(self, center, radius: float, level: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """Centres (M, 3) and probabilities (M,) of the occupied cells of pyramid ``level`` whose
-        centres lie within ``radius`` of ``center``, in (i, j, k) order. Visits non-empty blocks only."""
+        centres lie within ``radius`` of ``center`` (block by block). Visits non-empty blocks only."""
         c, r = self._sphere_args(center, radius)
         key0, grid, counts = self._level_state(level)
         res = self._res * 2 ** level
