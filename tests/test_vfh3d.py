@@ -170,7 +170,7 @@ def test_binary_hysteresis_property(seed, low, width):
 
 
 def test_hysteresis_through_the_cycle():
-    """A single-hit voxel (weight 0.49 * 1.7 = 0.83, inside the band) keeps a blocked cell blocked but cannot block it."""
+    """A single-hit voxel (weight 0.49 * 1.7 = 0.83, inside the band) keeps a blocked cell blocked, cannot block one."""
     state = VFHState()
     ahead = POS + [[2.0, 0.0, 0.0]]
     first = step(state, voxels=saturated(ahead))
