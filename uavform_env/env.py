@@ -134,7 +134,8 @@ class FormationEnv(ParallelEnv):
 
         n = self.n_uavs
         self.states = np.zeros((n, STATE_DIM))
-        self.states[:, :3] = slot_positions(np.asarray(m.start[:2]), m.start_heading, self.offsets, m.start[2])
+        self.states[:, :3] = slot_positions(np.asarray(m.start[:2]), m.start_heading, self.offsets, cfg.formation.z_ref)
+        self.states[0, 2] = m.start[2]
         self.states[:, PSI] = m.start_heading
         self.broadcast = self.states.copy()
         self.active = np.ones(n, bool)
