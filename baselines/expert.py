@@ -22,7 +22,7 @@ from uavform_env.dynamics import PSI, V, VZ, W, commands_to_actions, wrap
 from .astar import AStarConfig, GlobalPath, Raster, inflate, plan_path, replan_trigger
 from .dwa import DWAConfig, dwa_plan
 from .policy import OnboardPolicy
-from .vfh3d import VFHConfig, VFHState, vfh3d_step
+from .vfh3d import VFHConfig, VFHState, open_cells, vfh3d_step
 
 LEVEL, CLIMB, BLOCKED = "level", "climb", "blocked"
 WEIGHT_NAMES = ("alpha0", "beta", "gamma", "eps0", "k1", "k2", "k3")
@@ -41,6 +41,13 @@ class ExpertConfig(_Config):
                        formation altitude blocks (planar controllers) [X]
     dwa_map_level      octree level whose voxels form DWA's obstacle set (1 = 0.4 m voxels at 0.2 m) [X]
     replan_check_period  how often (s) the leader rebuilds its raster and tests the (d5) triggers [X]
+    vfh_neighbour_radius  neighbours closer than this become 3D VFH+ pseudo-voxels (g6); farther ones are
+                       left to DWA, so the formation's own members do not close the level gaps [X]
+    level_window       LEVEL also when an open level cell lies within this angle of the target azimuth:
+                       DWA detours horizontally rather than climbing over what it can fly around [X]
+    geofence_spacing   the world's x/y bounds enter DWA as walls of points this far apart [X]
+    rejoin_distance    a follower farther than this from its slot rejoins along its own A* path (the same
+                       planner the leader runs), heading for the path's lookahead point [X]
     """
 
     dwa: DWAConfig = field(default_factory=lambda: DWAConfig.ablation("IDWA"))
@@ -63,6 +70,10 @@ class ExpertConfig(_Config):
     climb_lookahead: float = 3.0
     yield_factor: float = 0.5
     column_hold: float = 3.0
+    vfh_neighbour_radius: float = 2.0
+    level_window: float = math.radians(30.0)
+    geofence_spacing: float = 0.4
+    rejoin_distance: float = 4.0
 
     def __post_init__(self):
         o = "ExpertConfig"
@@ -75,10 +86,13 @@ class ExpertConfig(_Config):
         _check_choice(o, "astar_layer", self.astar_layer, ASTAR_LAYERS)
         _check_int(o, "dwa_map_level", self.dwa_map_level, 0, 4)
         _check_int(o, "debounce", self.debounce, 1, 100)
-        for name in ("replan_check_period", "k_f", "k_h", "k_z", "T_stuck", "climb_lookahead", "column_hold"):
+        for name in ("replan_check_period", "k_f", "k_h", "k_z", "T_stuck", "climb_lookahead", "column_hold",
+                     "vfh_neighbour_radius", "rejoin_distance"):
             _check_range(o, name, getattr(self, name), 0.0, None)
         _check_range(o, "leader_speed_cap", self.leader_speed_cap, 0.0, 1.0, lo_open=True)
         _check_range(o, "yield_factor", self.yield_factor, 0.0, 1.0)
+        _check_range(o, "level_window", self.level_window, 0.0, math.pi)
+        _check_range(o, "geofence_spacing", self.geofence_spacing, 0.05, None)
         _check_range(o, "e0", self.e0, 0.0, None)
         _check_range(o, "e1", self.e1, self.e0, None, lo_open=True)
 
@@ -134,7 +148,7 @@ class FusionExpert(OnboardPolicy):
         self.memory = {a: _UAVMemory() for a in base.possible_agents}
         lead = base.onboard(base.possible_agents[0])
         self.raster = _raster_for(lead, self.config.astar.res_g)
-        if lead.prior.kind != "none" and self._plan(lead, self.memory[lead.agent], 0.0) is None:
+        if lead.prior.kind != "none" and self._plan(lead, self.memory[lead.agent], 0.0, lead.goal[:2]) is None:
             raise ValueError(f"infeasible mission: the goal {lead.goal.tolist()} cannot be reached from the start "
                              f"{lead.state[:3].tolist()} on the prior map ({lead.prior.kind}) with the "
                              f"'{self.config.astar_layer}' raster of this controller")
@@ -178,6 +192,7 @@ class FusionExpert(OnboardPolicy):
         reach = lim.v_max * cfg.dwa.T_p + cfg.dwa.D_cap + lim.r_uav + vox_size
         obstacles, _ = view.occupancy.occupied_in_sphere(pos, reach, level=level)
         radius = vox_size * math.sqrt(3.0) / 2.0
+        fence = _geofence(pos, reach, view.bounds_lo, view.bounds_hi, cfg.geofence_spacing)
 
         vz_cmd = float(np.clip(cfg.k_z * (z_slot - pos[2]), -lim.vz_max, lim.vz_max))
         heading_goal = goal
@@ -186,12 +201,11 @@ class FusionExpert(OnboardPolicy):
         if cfg.use_vfh:
             centres, probs = view.occupancy.occupied_in_sphere(pos, cfg.vfh.R_w)
             target = np.array([lookahead[0], lookahead[1], z_slot])
-            alive = view.neighbour_alive
-            near = movers_pos[alive]
+            close = view.neighbour_alive & (np.linalg.norm(movers_pos - pos, axis=1) < cfg.vfh_neighbour_radius)
             vfh_result = vfh3d_step(mem.vfh, cfg.vfh, lim, pos, s[PSI], s[V], s[VZ], target - pos, centres, probs,
-                                    view.occupancy.resolution, near)
+                                    view.occupancy.resolution, movers_pos[close])
             emergency = vfh_result.emergency
-            mode = self._debounced_mode(mem, vfh_result, cfg)
+            mode = self._debounced_mode(mem, vfh_result, cfg, target - pos)
             if mode == CLIMB and not vfh_result.blocked:
                 e = vfh_result.elevation
                 vz_cmd = float(np.clip(max(s[V], 0.3) * math.tan(e), -lim.vz_max, lim.vz_max))
@@ -204,7 +218,10 @@ class FusionExpert(OnboardPolicy):
             mem.mode = LEVEL
 
         clearance_now = _clearance(pos, obstacles, radius, lim.r_uav)
-        res = dwa_plan(s, lim, cfg.dwa, heading_goal, obstacles, radius, vz_cmd=vz_cmd, lookahead=lookahead,
+        if len(fence):
+            obstacles = np.concatenate([obstacles, fence])
+        radii = np.concatenate([np.full(len(obstacles) - len(fence), radius), np.zeros(len(fence))])
+        res = dwa_plan(s, lim, cfg.dwa, heading_goal, obstacles, radii, vz_cmd=vz_cmd, lookahead=lookahead,
                        clearance_now=clearance_now, movers_pos=movers_pos[view.neighbour_alive],
                        movers_vel=movers_vel[view.neighbour_alive], v_ref=v_ref, v_cap=v_cap,
                        prev_alignment=mem.prev_alignment)
@@ -231,20 +248,9 @@ class FusionExpert(OnboardPolicy):
     # ------------------------------------------------------------------ targets
     def _leader_target(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float):
         lim = view.limits
-        pos_xy = view.state[:2]
-        if mem.replans == 0 or t - mem.last_check_time >= cfg.replan_check_period:
-            mem.last_check_time = t
-            blocked = self._blocked_raster(view, cfg)
-            if mem.replans == 0:
-                self._plan(view, mem, t, blocked)
-            else:
-                inflated = inflate(blocked, lim.r_uav + lim.r_safe, self.raster.res)
-                if replan_trigger(mem.path, pos_xy, inflated, self.raster, max(0.0, t - mem.last_plan_time), True,
-                                  cfg.astar) is not None:
-                    self._plan(view, mem, t, blocked)
-        if not mem.path_found:
+        lookahead = self._guidance(view, mem, cfg, t, view.goal[:2])
+        if lookahead is None:
             return None, None, None, None
-        lookahead = mem.path.lookahead(pos_xy, cfg.astar.lookahead) if mem.path is not None else view.goal[:2]
         goal = lookahead if cfg.astar.heading_target == "lookahead" else view.goal[:2]
         errors = _follower_errors(view)
         scale = 1.0
@@ -253,13 +259,35 @@ class FusionExpert(OnboardPolicy):
             scale = float(np.clip(1.0 - (mean_err - cfg.e0) / (cfg.e1 - cfg.e0), 0.3, 1.0))
         return goal, lookahead, cfg.leader_speed_cap * lim.v_max * scale, None
 
-    def _plan(self, view, mem: _UAVMemory, t: float, blocked=None):
+    def _guidance(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float, goal_xy: np.ndarray):
+        """A* lookahead point toward ``goal_xy`` on this UAV's own map, replanned on the (d5) triggers.
+
+        None when no path exists (the goal is unreachable on what this UAV knows).
+        """
+        lim = view.limits
+        pos_xy = view.state[:2]
+        if mem.replans == 0 or t - mem.last_check_time >= cfg.replan_check_period:
+            mem.last_check_time = t
+            blocked = self._blocked_raster(view, cfg)
+            if mem.replans == 0 or mem.path is None:
+                self._plan(view, mem, t, goal_xy, blocked)
+            else:
+                inflated = inflate(blocked, lim.r_uav + lim.r_safe, self.raster.res)
+                trigger = replan_trigger(mem.path, pos_xy, inflated, self.raster, max(0.0, t - mem.last_plan_time),
+                                         True, cfg.astar)
+                if trigger is not None:
+                    self._plan(view, mem, t, goal_xy, blocked)
+        if not mem.path_found:
+            return None
+        return mem.path.lookahead(pos_xy, cfg.astar.lookahead)
+
+    def _plan(self, view, mem: _UAVMemory, t: float, goal_xy, blocked=None):
         cfg = self.config
         lim = view.limits
         if blocked is None:
             blocked = self._blocked_raster(view, cfg)
         path = plan_path(blocked, self.raster, np.clip(view.state[:2], *self._raster_box()),
-                         np.clip(view.goal[:2], *self._raster_box()), lim.r_uav + lim.r_safe, cfg.astar)
+                         np.clip(goal_xy, *self._raster_box()), lim.r_uav + lim.r_safe, cfg.astar)
         mem.path, mem.path_found = path, path is not None
         mem.last_plan_time = t
         mem.replans += 1
@@ -320,6 +348,13 @@ class FusionExpert(OnboardPolicy):
         lookahead = view.state[:2] + a_j
         cl, sl = heading_l
         slot_now = lead[:2] + np.array([cl * offset[0] - sl * offset[1], sl * offset[0] + cl * offset[1]])
+        if np.linalg.norm(slot_now - view.state[:2]) > cfg.rejoin_distance:
+            # Far from the slot: rejoin along an A* path on the own map, heading for its lookahead point.
+            guide = self._guidance(view, mem, cfg, t, slot_now)
+            if guide is not None:
+                return guide, guide, None, None
+        else:
+            mem.replans, mem.path = 0, None
         e_par = float((slot_now - view.state[:2]) @ heading_l)
         v_ref = float(np.clip(lead[V] + cfg.k_f * e_par, 0.0, lim.v_max))
         return goal, lookahead, None, v_ref
@@ -351,10 +386,10 @@ class FusionExpert(OnboardPolicy):
         return v_cap
 
     # ------------------------------------------------------------------ vertical decision (g4)
-    def _debounced_mode(self, mem: _UAVMemory, r, cfg: ExpertConfig) -> str:
+    def _debounced_mode(self, mem: _UAVMemory, r, cfg: ExpertConfig, target_dir: np.ndarray) -> str:
         if r.blocked:
             proposal = BLOCKED
-        elif abs(r.elevation) <= cfg.vfh.alpha_h / 2 + 1e-9:
+        elif abs(r.elevation) <= cfg.vfh.alpha_h / 2 + 1e-9 or _level_way(r, cfg, target_dir):
             proposal = LEVEL
         else:
             proposal = CLIMB
@@ -398,6 +433,38 @@ def _no_vertical_gap(occupied: np.ndarray, z_centres: np.ndarray, z_min: float, 
     free_run = (cs[:, g:] - cs[:, :-g]) == 0
     out[cols] = ~free_run.any(axis=1)
     return out
+
+
+def _level_way(r, cfg: ExpertConfig, target_dir: np.ndarray) -> bool:
+    """Whether an open cell of the two level rows lies within ``level_window`` of the target azimuth."""
+    if cfg.level_window <= 0.0:
+        return False
+    window_open = open_cells(r.masked, cfg.vfh.win)
+    n_e, n_z = window_open.shape
+    mid = n_e // 2
+    level = window_open[mid - 1] | window_open[mid]
+    azimuths = (np.arange(n_z) + 0.5) * cfg.vfh.alpha_h
+    off = np.abs((azimuths - math.atan2(target_dir[1], target_dir[0]) + math.pi) % (2 * math.pi) - math.pi)
+    return bool(np.any(level & (off <= cfg.level_window)))
+
+
+def _geofence(pos, reach: float, lo, hi, spacing: float) -> np.ndarray:
+    """Points on the world's vertical x/y bound planes within ``reach`` of ``pos``, at its altitude."""
+    pts = []
+    for axis in (0, 1):
+        other = 1 - axis
+        for bound in (lo[axis], hi[axis]):
+            gap = abs(pos[axis] - bound)
+            if gap >= reach:
+                continue
+            half = math.sqrt(reach ** 2 - gap ** 2)
+            t = np.arange(pos[other] - half, pos[other] + half + spacing, spacing)
+            p = np.empty((t.size, 3))
+            p[:, axis] = bound
+            p[:, other] = t
+            p[:, 2] = pos[2]
+            pts.append(p)
+    return np.concatenate(pts) if pts else np.empty((0, 3))
 
 
 def _project_to_altitude(obstacles: np.ndarray, z: float, band: float) -> np.ndarray:
