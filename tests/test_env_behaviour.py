@@ -112,7 +112,7 @@ def test_obstacle_appears_in_onboard_map_and_uavs_do_not():
     for _ in range(5):
         penv.step({a: np.zeros(3, np.float32) for a in penv.agents})
     view = penv.unwrapped.onboard("uav_0")
-    assert view.occupancy.label(np.array([[13.3, 10.0, 3.0]]))[0] == 1         # pillar surface facing the UAV
+    assert view.occupancy.label(np.array([[13.5, 10.0, 3.0]]))[0] == 1         # first voxel of the pillar facing the UAV
     other = view.neighbour_states[0, :3]
     assert view.occupancy.label(other[None])[0] != 1                             # the neighbour is not an obstacle
     assert view.occupancy.label(np.array([[11.0, 10.0, 3.0]]))[0] == 0          # free space between

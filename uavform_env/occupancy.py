@@ -6,9 +6,10 @@ with the same semantics). Scans are integrated like ``OccupancyOcTreeBase::inser
 every voxel is updated at most once per scan and a hit beats a miss, log-odds add in float32 and
 are clamped. Labels therefore match ``octomap-python`` voxel by voxel (tests/test_octomap_parity.py).
 
-Two structures keep the queries cheap: per-block occupied counts (8^3 voxels per block, updated
-inside the integrate kernel), so sphere queries visit only non-empty blocks, and a lazily refreshed
-max-pooled pyramid whose level d holds OctoMap's inner nodes d levels above the leaves.
+Three structures keep the queries cheap: per-block occupied counts (8^3 voxels per block) and
+per-row occupied bits (8 voxels along z per byte), both updated inside the integrate kernel, so a
+sphere query skips empty blocks and reads a block's 64 row bytes instead of its 512 voxels; and a
+lazily refreshed max-pooled pyramid whose level d holds OctoMap's inner nodes d levels up.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from __future__ import annotations
 import math
 import os
 import tempfile
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -28,6 +30,15 @@ BLOCK_SHIFT = 3  # blocks of 2**3 = 8 voxels per axis carry occupied counts
 # straddles the origin and is not a level).
 MAX_LEVEL = 15
 _UNTOUCHED, _MISS, _HIT = 0, 1, 2  # stamp values during one integrate call (the stamp is all-zero between calls)
+
+
+class _Level(NamedTuple):
+    """One pyramid level: key of its lower corner, log-odds grid and the occupancy summaries."""
+
+    key0: np.ndarray    # (3,) int64
+    grid: np.ndarray    # (nx, ny, nz) float32, NaN = unknown
+    counts: np.ndarray  # (bx, by, bz) int32 occupied cells per 8^3 block
+    bits: np.ndarray    # (nx, ny, bz) uint8, bit b of [i, j, kb] = cell (i, j, 8 kb + b) occupied
 
 
 class OccupancyMap:
@@ -59,9 +70,7 @@ class OccupancyMap:
         self._l_hit, self._l_miss = f32(cfg.logodds(cfg.p_hit)), f32(cfg.logodds(cfg.p_miss))
         self._l_min, self._l_max = f32(cfg.logodds(cfg.p_min)), f32(cfg.logodds(cfg.p_max))
         self._l_occ = f32(cfg.logodds(cfg.p_occ))
-        grid = np.full(self._shape, np.nan, np.float32)
-        # Pyramid: per level (key of the lower corner, log-odds grid, per-block occupied counts).
-        self._levels = [(self._key0, grid, _zero_counts(self._shape))]
+        self._levels = [_empty_level(self._key0, self._shape)]
         self._dirty = _empty_region()  # voxels changed since the pyramid was last refreshed
         self._n_levels = 1
         while self._n_levels <= MAX_LEVEL and any(n > 1 for n in _level_shape(self._key0, self._shape, self._n_levels - 1)):
@@ -87,7 +96,7 @@ class OccupancyMap:
     @property
     def logodds(self) -> np.ndarray:
         """Read-only float32 view of the leaf log-odds (NaN = unknown)."""
-        view = self._levels[0][1].view()
+        view = self._levels[0].grid.view()
         view.flags.writeable = False
         return view
 
@@ -114,9 +123,9 @@ class OccupancyMap:
         hit = np.asarray(hit)
         if hit.dtype != np.bool_ or hit.shape != (ends.shape[0],):
             raise ValueError(f"hit: expected a bool array of shape ({ends.shape[0]},), got {hit.dtype} {hit.shape}")
-        key0, grid, counts = self._levels[0]
-        _integrate(grid, self._stamp, counts, self._dirty, key0, self._res, o, ends, hit,
-                   self._l_hit, self._l_miss, self._l_min, self._l_max, self._l_occ)
+        leaves = self._levels[0]
+        _integrate(leaves.grid, self._stamp, leaves.counts, leaves.bits, self._dirty, leaves.key0, self._res, o, ends,
+                   hit, self._l_hit, self._l_miss, self._l_min, self._l_max, self._l_occ)
 
     def integrate_scan(self, sensor_origin, scan_row_endpoints, scan_row_kind) -> None:
         """Insert one UAV's row of a ``sensing.Scan``: static hits (kind 1) are hits, the rest misses."""
@@ -133,7 +142,7 @@ class OccupancyMap:
         inside = np.all((idx >= 0) & (idx < np.asarray(self._shape)), axis=1)
         out = np.full(idx.shape[0], np.nan, np.float32)
         i = idx[inside]
-        out[inside] = self._levels[0][1][i[:, 0], i[:, 1], i[:, 2]]
+        out[inside] = self._levels[0].grid[i[:, 0], i[:, 1], i[:, 2]]
         return out.reshape(p.shape[:-1])
 
     def label(self, points) -> np.ndarray:
@@ -162,15 +171,14 @@ class OccupancyMap:
         """Centres (M, 3) and probabilities (M,) of the occupied cells of pyramid ``level`` whose
         centres lie within ``radius`` of ``center`` (block by block). Visits non-empty blocks only."""
         c, r = self._sphere_args(center, radius)
-        key0, grid, counts = self._level_state(level)
-        res = self._res * 2 ** level
-        return _occupied_in_sphere(grid, counts, key0, res, c, r, self._l_occ, False)
+        lv = self._level_state(level)
+        return _occupied_in_sphere(lv.grid, lv.counts, lv.bits, lv.key0, self._res * 2 ** level, c, r, False)
 
     def occupied_within(self, center, radius: float) -> bool:
         """True if any occupied voxel centre lies within ``radius`` of ``center``."""
         c, r = self._sphere_args(center, radius)
-        key0, grid, counts = self._levels[0]
-        return _occupied_in_sphere(grid, counts, key0, self._res, c, r, self._l_occ, True)[1].size > 0
+        lv = self._level_state(0)
+        return _occupied_in_sphere(lv.grid, lv.counts, lv.bits, lv.key0, self._res, c, r, True)[1].size > 0
 
     def level(self, depth: int) -> tuple[np.ndarray, float, np.ndarray]:
         """Octree level ``depth``: (origin, res * 2**depth, read-only float32 log-odds grid).
@@ -179,26 +187,26 @@ class OccupancyMap:
         node. Cells align with OctoMap's nodes at that depth, so the level's origin can lie below
         the map's. Cached; refreshed lazily over the region changed by ``integrate``.
         """
-        key0, grid, _ = self._level_state(depth)
-        view = grid.view()
+        lv = self._level_state(depth)
+        view = lv.grid.view()
         view.flags.writeable = False
-        return key0 * (self._res * 2 ** depth), self._res * 2 ** depth, view
+        return lv.key0 * (self._res * 2 ** depth), self._res * 2 ** depth, view
 
-    def _level_state(self, depth):
+    def _level_state(self, depth) -> _Level:
         if isinstance(depth, bool) or not isinstance(depth, (int, np.integer)) or not 0 <= depth < self._n_levels:
             raise ValueError(f"level={depth!r}: expected an integer in [0, {self._n_levels - 1}]")
-        if len(self._levels) > 1 and self._dirty[0] <= self._dirty[3]:
+        if depth == 0:
+            return self._levels[0]
+        if self._dirty[0] <= self._dirty[3]:  # bring the built levels up to date
             region = self._dirty.copy()
             for d in range(1, len(self._levels)):
                 region = _pool_level(self._levels[d - 1], self._levels[d], region, self._l_occ)
-        self._dirty[:] = _empty_region()
+            self._dirty[:] = _empty_region()
         while len(self._levels) <= depth:
             d = len(self._levels)
             child = self._levels[d - 1]
-            key0 = self._key0 >> d
-            shape = _level_shape(self._key0, self._shape, d)
-            parent = (key0, np.empty(shape, np.float32), _zero_counts(shape))
-            full = np.concatenate([np.zeros(3, np.int64), np.asarray(child[1].shape, np.int64) - 1])
+            parent = _empty_level(self._key0 >> d, _level_shape(self._key0, self._shape, d))
+            full = np.concatenate([np.zeros(3, np.int64), np.asarray(child.grid.shape, np.int64) - 1])
             _pool_level(child, parent, full, self._l_occ)
             self._levels.append(parent)
         return self._levels[depth]
@@ -218,7 +226,7 @@ class OccupancyMap:
         tree.setClampingThresMin(cfg.p_min)
         tree.setClampingThresMax(cfg.p_max)
         tree.setOccupancyThres(cfg.p_occ)
-        grid = self._levels[0][1]
+        grid = self._levels[0].grid
         idx = np.argwhere(~np.isnan(grid))
         values = grid[idx[:, 0], idx[:, 1], idx[:, 2]]
         centres = (self._key0 + idx + 0.5) * self._res
@@ -281,8 +289,11 @@ def _empty_region() -> np.ndarray:
     return np.array([1 << 62] * 3 + [-1] * 3, np.int64)
 
 
-def _zero_counts(shape) -> np.ndarray:
-    return np.zeros(tuple(-(-n >> BLOCK_SHIFT) for n in shape), np.int32)
+def _empty_level(key0: np.ndarray, shape) -> _Level:
+    """A level with every cell unknown."""
+    blocks = tuple(-(-n >> BLOCK_SHIFT) for n in shape)
+    return _Level(key0, np.full(shape, np.nan, np.float32), np.zeros(blocks, np.int32),
+                  np.zeros(shape[:2] + blocks[2:], np.uint8))
 
 
 def _level_shape(key0: np.ndarray, shape, depth: int) -> tuple:
@@ -294,28 +305,60 @@ def _level_shape(key0: np.ndarray, shape, depth: int) -> tuple:
 def _pool_level(child, parent, region: np.ndarray, l_occ) -> np.ndarray:
     """Refresh the parent cells above the child's ``region``; returns the refreshed parent region."""
     out = np.empty(6, np.int64)
-    _pool(child[1], child[0], parent[1], parent[0], parent[2], region, l_occ, out)
+    _pool(child.grid, child.key0, parent.grid, parent.key0, parent.counts, parent.bits, region, l_occ, out)
     return out
 
 
 # ---------------------------------------------------------------------- kernels
+@numba.njit(cache=True, inline="always")
+def _update_voxel(flat, counts, bits, v, update, l_min, l_max, l_occ, ny, nz):
+    """Add one log-odds update to voxel ``v`` (flat index) in float32, clamp, keep the summaries."""
+    old = flat[v]
+    was_occupied = old >= l_occ
+    if np.isnan(old):
+        old = np.float32(0.0)
+    new = old + update
+    if new < l_min:
+        new = l_min
+    elif new > l_max:
+        new = l_max
+    flat[v] = new
+    is_occupied = new >= l_occ
+    if is_occupied != was_occupied:
+        k = v % nz
+        j = (v // nz) % ny
+        i = v // (nz * ny)
+        counts[i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT] += 1 if is_occupied else -1
+        bits[i, j, k >> BLOCK_SHIFT] ^= np.uint8(1 << (k & 7))
+
+
 @numba.njit(cache=True)
-def _integrate(grid, stamp, counts, dirty, key0, res, origin, endpoints, hit, l_hit, l_miss, l_min, l_max, l_occ):
-    """OctoMap's computeUpdate + updateNode over a dense grid (see ``OccupancyMap.integrate``)."""
+def _integrate(grid, stamp, counts, bits, dirty, key0, res, origin, endpoints, hit, l_hit, l_miss, l_min, l_max, l_occ):
+    """OctoMap's computeUpdate + updateNode over a dense grid (see ``OccupancyMap.integrate``).
+
+    Hit voxels are marked first; each ray then applies a miss to every unmarked voxel it crosses
+    and marks it; finally the hits are applied and all marks cleared (the stamp is shared).
+    """
     nx, ny, nz = grid.shape
+    flat = grid.reshape(nx * ny * nz)
+    marks = stamp.reshape(nx * ny * nz)
     inv_res = 1.0 / res
     n_rays = endpoints.shape[0]
     # OctoMap's point3d is float32: round the origin and the endpoints first.
     ox, oy, oz = np.float64(np.float32(origin[0])), np.float64(np.float32(origin[1])), np.float64(np.float32(origin[2]))
     ends = np.empty((n_rays, 3))
     capacity, longest = 0, 0
+    lo = np.array([coord_key(ox, inv_res), coord_key(oy, inv_res), coord_key(oz, inv_res)]) - key0
+    hi = lo.copy()
     for r in range(n_rays):
         for a in range(3):
             ends[r, a] = np.float32(endpoints[r, a])
+            e = coord_key(ends[r, a], inv_res) - key0[a]
+            lo[a], hi[a] = min(lo[a], e), max(hi[a], e)
         bound = ray_key_bound(ox, oy, oz, ends[r, 0], ends[r, 1], ends[r, 2], inv_res)
         capacity += bound + 1
         longest = max(longest, bound)
-    touched = np.empty((capacity, 3), np.int64)
+    touched = np.empty(capacity, np.int64)
     keys = np.empty((longest, 3), np.int64)
     n = 0
     for r in range(n_rays):  # occupied endpoints first: a hit beats a miss of the same scan
@@ -323,42 +366,39 @@ def _integrate(grid, stamp, counts, dirty, key0, res, origin, endpoints, hit, l_
             i = coord_key(ends[r, 0], inv_res) - key0[0]
             j = coord_key(ends[r, 1], inv_res) - key0[1]
             k = coord_key(ends[r, 2], inv_res) - key0[2]
-            if 0 <= i < nx and 0 <= j < ny and 0 <= k < nz and stamp[i, j, k] == _UNTOUCHED:
-                stamp[i, j, k] = _HIT
-                touched[n, 0], touched[n, 1], touched[n, 2] = i, j, k
-                n += 1
-    for r in range(n_rays):
+            if 0 <= i < nx and 0 <= j < ny and 0 <= k < nz:
+                v = (i * ny + j) * nz + k
+                if marks[v] == _UNTOUCHED:
+                    marks[v] = _HIT
+                    touched[n] = v
+                    n += 1
+    for r in range(n_rays):  # misses, one per voxel and scan
         m = ray_keys(ox, oy, oz, ends[r, 0], ends[r, 1], ends[r, 2], res, keys)
         for q in range(m):
             i, j, k = keys[q, 0] - key0[0], keys[q, 1] - key0[1], keys[q, 2] - key0[2]
-            if 0 <= i < nx and 0 <= j < ny and 0 <= k < nz and stamp[i, j, k] == _UNTOUCHED:
-                stamp[i, j, k] = _MISS
-                touched[n, 0], touched[n, 1], touched[n, 2] = i, j, k
-                n += 1
-    for q in range(n):  # one update per voxel, in float32 like OctoMap's node values
-        i, j, k = touched[q, 0], touched[q, 1], touched[q, 2]
-        old = grid[i, j, k]
-        was_occupied = old >= l_occ
-        if np.isnan(old):
-            old = np.float32(0.0)
-        new = old + (l_hit if stamp[i, j, k] == _HIT else l_miss)
-        if new < l_min:
-            new = l_min
-        elif new > l_max:
-            new = l_max
-        grid[i, j, k] = new
-        stamp[i, j, k] = _UNTOUCHED
-        is_occupied = new >= l_occ
-        if is_occupied != was_occupied:
-            counts[i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT] += 1 if is_occupied else -1
-        dirty[0], dirty[1], dirty[2] = min(dirty[0], i), min(dirty[1], j), min(dirty[2], k)
-        dirty[3], dirty[4], dirty[5] = max(dirty[3], i), max(dirty[4], j), max(dirty[5], k)
+            if 0 <= i < nx and 0 <= j < ny and 0 <= k < nz:
+                v = (i * ny + j) * nz + k
+                if marks[v] == _UNTOUCHED:
+                    marks[v] = _MISS
+                    touched[n] = v
+                    n += 1
+                    _update_voxel(flat, counts, bits, v, l_miss, l_min, l_max, l_occ, ny, nz)
+    for q in range(n):
+        v = touched[q]
+        if marks[v] == _HIT:
+            _update_voxel(flat, counts, bits, v, l_hit, l_min, l_max, l_occ, ny, nz)
+        marks[v] = _UNTOUCHED
+    if n > 0:  # every segment lies in the box of its end keys: a conservative changed region
+        shape = (nx, ny, nz)
+        for a in range(3):
+            dirty[a] = min(dirty[a], max(lo[a], 0))
+            dirty[a + 3] = max(dirty[a + 3], min(hi[a], shape[a] - 1))
 
 
 @numba.njit(cache=True)
-def _pool(child, child_key0, parent, parent_key0, parent_counts, region, l_occ, out):
+def _pool(child, child_key0, parent, parent_key0, parent_counts, parent_bits, region, l_occ, out):
     """Max-pool the 2x2x2 children of every parent cell above the child region (NaN = unknown),
-    then recount the occupied cells of every parent block touched; write the parent region to out."""
+    then redo the summaries of every parent block touched; write the parent region to out."""
     cn = child.shape
     pn = parent.shape
     for a in range(3):
@@ -390,9 +430,12 @@ def _pool(child, child_key0, parent, parent_key0, parent_counts, region, l_occ, 
                 c = 0
                 for pi in range(bi << BLOCK_SHIFT, min((bi + 1) << BLOCK_SHIFT, pn[0])):
                     for pj in range(bj << BLOCK_SHIFT, min((bj + 1) << BLOCK_SHIFT, pn[1])):
+                        row = 0
                         for pk in range(bk << BLOCK_SHIFT, min((bk + 1) << BLOCK_SHIFT, pn[2])):
                             if parent[pi, pj, pk] >= l_occ:
+                                row |= 1 << (pk & 7)
                                 c += 1
+                        parent_bits[pi, pj, bk] = row
                 parent_counts[bi, bj, bk] = c
 
 
@@ -438,9 +481,9 @@ def _candidate_blocks(counts, key0, res, center, radius, n):
 
 
 @numba.njit(cache=True)
-def _occupied_in_sphere(grid, counts, key0, res, center, radius, l_occ, first_only):
-    """Occupied cells whose centres lie within ``radius``, visiting only the candidate blocks;
-    with ``first_only`` stop at the first one."""
+def _occupied_in_sphere(grid, counts, bits, key0, res, center, radius, first_only):
+    """Occupied cells whose centres lie within ``radius``: candidate blocks only, and in them only
+    the set bits of their rows; with ``first_only`` stop at the first one."""
     blocks = _candidate_blocks(counts, key0, res, center, radius, grid.shape)
     capacity = 0
     for b in range(blocks.shape[0]):
@@ -450,18 +493,24 @@ def _occupied_in_sphere(grid, counts, key0, res, center, radius, l_occ, first_on
     r2 = radius * radius
     m = 0
     for b in range(blocks.shape[0]):
+        k0, k1 = blocks[b, 4], blocks[b, 5]
+        kb = k0 >> BLOCK_SHIFT
+        in_range = ((1 << (k1 - (kb << BLOCK_SHIFT) + 1)) - 1) & ~((1 << (k0 - (kb << BLOCK_SHIFT))) - 1)
         for i in range(blocks[b, 0], blocks[b, 1] + 1):
             x = (key0[0] + i + 0.5) * res
             for j in range(blocks[b, 2], blocks[b, 3] + 1):
+                row = bits[i, j, kb] & in_range
+                if row == 0:
+                    continue
                 y = (key0[1] + j + 0.5) * res
-                for k in range(blocks[b, 4], blocks[b, 5] + 1):
-                    v = grid[i, j, k]
-                    if not v >= l_occ:
+                for bit in range(1 << BLOCK_SHIFT):
+                    if not (row >> bit) & 1:
                         continue
+                    k = (kb << BLOCK_SHIFT) + bit
                     z = (key0[2] + k + 0.5) * res
                     if (x - center[0]) ** 2 + (y - center[1]) ** 2 + (z - center[2]) ** 2 <= r2:
                         centres[m, 0], centres[m, 1], centres[m, 2] = x, y, z
-                        probs[m] = 1.0 / (1.0 + math.exp(-np.float64(v)))
+                        probs[m] = 1.0 / (1.0 + math.exp(-np.float64(grid[i, j, k])))
                         m += 1
                         if first_only:
                             return centres[:m], probs[:m]

@@ -1,8 +1,8 @@
 """Pictures of a formation flight: live frames, the episode picture and videos.
 
-Matplotlib only. A ``Renderer`` keeps one figure: the obstacles are built once per world and only
-the UAV artists move, so a frame costs one Agg redraw. Only ``"human"`` mode touches pyplot, so
-headless rendering never opens a window nor changes pyplot's global state.
+Matplotlib only. A ``Renderer`` keeps one figure: axes and obstacles are drawn once per world into a
+cached background and each frame only blits the UAV artists over it. Only ``"human"`` mode touches
+pyplot, so headless rendering never opens a window nor changes pyplot's global state.
 """
 
 from __future__ import annotations
@@ -133,7 +133,8 @@ def _add_obstacles_3d(ax, world, norm: Normalize) -> None:
         edges = faces.copy()
         edges[:, :3] *= 0.6
         edges[:, 3] = 0.5
-        ax.add_collection3d(Poly3DCollection(polys, facecolors=faces, edgecolors=edges, linewidths=0.3, zorder=1), autolim=False)
+        ax.add_collection3d(Poly3DCollection(polys, facecolors=faces, edgecolors=edges, linewidths=0.3, zorder=1),
+                            autolim=False)
 
 
 def _add_obstacles_top(ax, world, norm: Normalize) -> None:
@@ -159,14 +160,13 @@ def _set_limits(ax, scenario, three_d: bool, zoom: float = 1.0) -> None:
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     if three_d:
-        zlo, zhi = (lo[2], hi[2]) if lo.size > 2 else (0.0, 10.0)
-        ax.set_zlim(zlo, zhi)
+        ax.set_zlim(lo[2], hi[2])
         ax.set_zlabel("z [m]")
-        span = hi[:2] - lo[:2]
-        ax.set_box_aspect((span[0], span[1], max(zhi - zlo, MIN_BOX_HEIGHT_RATIO * span.max())), zoom=zoom)
-        heading = math.degrees(math.atan2(*(np.asarray(scenario.mission.goal, float)[1::-1]
-                                            - np.asarray(scenario.mission.start, float)[1::-1])))
-        ax.view_init(elev=CAMERA_ELEVATION_DEG, azim=heading + CAMERA_AZIMUTH_OFFSET_DEG)
+        span = hi - lo
+        ax.set_box_aspect((span[0], span[1], max(span[2], MIN_BOX_HEIGHT_RATIO * span[:2].max())), zoom=zoom)
+        course = np.asarray(scenario.mission.goal, float) - np.asarray(scenario.mission.start, float)
+        heading_deg = math.degrees(math.atan2(course[1], course[0]))
+        ax.view_init(elev=CAMERA_ELEVATION_DEG, azim=heading_deg + CAMERA_AZIMUTH_OFFSET_DEG)
         ax.computed_zorder = False                                    # UAVs stay visible through obstacles
     else:
         ax.set_aspect("equal")
@@ -213,15 +213,20 @@ def _check_env(env, who: str) -> None:
         raise ValueError(f"{who}: env has no scenario yet (env.scenario is None); call env.reset() first")
 
 
-def _legend_handles(crash: bool = True) -> list:
-    handles = [Line2D([], [], color=LEADER_COLOUR, marker="D", lw=2, label="leader"),
-               Line2D([], [], color=FOLLOWER_COLOURS[0], marker="o", lw=1, label="followers"),
-               Line2D([], [], color="0.4", marker="o", mfc="none", ls="none", label="formation slots"),
-               Line2D([], [], color=GOAL_COLOUR, marker="*", ms=12, mec="k", ls="none", label="goal")]
-    if crash:
-        handles.append(Line2D([], [], color=CRASH_COLOUR, marker="X", ms=9, ls="none", label="crashed"))
-    handles.append(Patch(facecolor=colormaps[OBSTACLE_CMAP](0.6), edgecolor="0.35", label="obstacles"))
-    return handles
+def _legend_handles(names: tuple[str, ...]) -> list:
+    """Legend entries by name, in the given order."""
+    handles = {
+        "leader": Line2D([], [], color=LEADER_COLOUR, marker="D", lw=2, label="leader"),
+        "followers": Line2D([], [], color=FOLLOWER_COLOURS[0], marker="o", lw=1, label="followers"),
+        "slots": Line2D([], [], color="0.4", marker="o", mfc="none", ls="none", label="formation slots"),
+        "snapshots": Line2D([], [], color="0.25", ls="--", marker="o", ms=3.5,
+                            label=f"formation every {SNAPSHOT_PERIOD_S:g} s"),
+        "start": Line2D([], [], color="k", marker="s", mfc="white", ms=9, ls="none", label="start"),
+        "goal": Line2D([], [], color=GOAL_COLOUR, marker="*", ms=12, mec="k", ls="none", label="goal"),
+        "crashed": Line2D([], [], color=CRASH_COLOUR, marker="X", ms=9, ls="none", label="crashed"),
+        "obstacles": Patch(facecolor=colormaps[OBSTACLE_CMAP](0.6), edgecolor="0.35", label="obstacles"),
+    }
+    return [handles[name] for name in names]
 
 
 # ---------------------------------------------------------------------------------------------- live frames
@@ -254,7 +259,8 @@ class _Scene:
         self.links = _segments(ax, colors="0.3", linewidths=0.8, linestyles="--", zorder=4)
         self.slots = _empty_line(ax, color="0.4", marker="o", mfc="none", ms=7, ls="none", zorder=4)
         self.crashes = _empty_line(ax, color=CRASH_COLOUR, marker="X", ms=11, mec="k", mew=0.5, ls="none", zorder=6)
-        fig.legend(handles=_legend_handles(), loc="upper right", bbox_to_anchor=(0.995, 0.93), fontsize=8)
+        fig.legend(handles=_legend_handles(("leader", "followers", "slots", "goal", "crashed", "obstacles")),
+                   loc="upper right", bbox_to_anchor=(0.995, 0.93), fontsize=8)
         self.hud = fig.text(0.01, 0.99, "", va="top", ha="left", fontsize=10)
         self.heading_length = 0.5 * float(np.max(np.linalg.norm(env.offsets[:, :2], axis=1), initial=2.0))
         self.dynamic = [*self.trails, self.links, self.slots, self.headings, *self.bodies, self.crashes, self.hud]
@@ -444,11 +450,9 @@ def plot_episode(env, path, title: str | None = None) -> None:
     axz.set_title("altitude profile", fontsize=11)
     axz.grid(True, lw=0.3, alpha=0.5)
 
-    legend = _legend_handles(crash=len(crash_pts) > 0)
-    legend[2:3] = [Line2D([], [], color="0.25", ls="--", marker="o", ms=3.5,
-                          label=f"formation every {SNAPSHOT_PERIOD_S:g} s"),
-                   Line2D([], [], color="k", marker="s", mfc="white", ms=9, ls="none", label="start")]
-    fig.legend(handles=legend, loc="lower right", bbox_to_anchor=(0.99, 0.065), ncols=2, fontsize=10)
+    names = ("leader", "followers", "snapshots", "start", "goal") + (("crashed",) if len(crash_pts) else ()) + \
+        ("obstacles",)
+    fig.legend(handles=_legend_handles(names), loc="lower right", bbox_to_anchor=(0.99, 0.065), ncols=2, fontsize=10)
     fig.suptitle(title if title is not None else _default_title(env, crashed[-1]), fontsize=13)
     buf = io.BytesIO()
     fig.savefig(buf, format=fmt)

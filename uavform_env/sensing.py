@@ -56,8 +56,11 @@ class RangeSensor:
             elevations = np.zeros(1)
         else:
             elevations = np.linspace(cfg.elevation_min, cfg.elevation_max, cfg.n_elevation)
-        self._azimuths = np.repeat(np.arange(cfg.n_azimuth) * (2.0 * math.pi / cfg.n_azimuth), cfg.n_elevation)
-        self._elevations = np.tile(elevations, cfg.n_azimuth)
+        azimuths = np.repeat(np.arange(cfg.n_azimuth) * (2.0 * math.pi / cfg.n_azimuth), cfg.n_elevation)
+        elevations = np.tile(elevations, cfg.n_azimuth)
+        # the fan at azimuth offset 0; a step's fan is this one rotated about z
+        self._fan = np.ascontiguousarray(np.column_stack([np.cos(elevations) * np.cos(azimuths),
+                                                          np.cos(elevations) * np.sin(azimuths), np.sin(elevations)]))
 
     @property
     def n_rays(self) -> int:
@@ -69,15 +72,11 @@ class RangeSensor:
             return 0.0
         return math.modf(step * _GOLDEN)[0] * (2.0 * math.pi / self.cfg.n_azimuth)
 
-    def _unit_vectors(self, azimuths: np.ndarray) -> np.ndarray:
-        cos_el = np.cos(self._elevations)
-        return np.stack([cos_el * np.cos(azimuths), cos_el * np.sin(azimuths),
-                         np.broadcast_to(np.sin(self._elevations), azimuths.shape)], axis=-1)
-
     def directions(self, step: int) -> np.ndarray:
         """Body-frame unit ray directions (R, 3) used at simulation step ``step``."""
-        step = _check_step(step)
-        return self._unit_vectors(self._azimuths + self._azimuth_offset(step))
+        out = np.empty((1,) + self._fan.shape)
+        _rotate_fan(self._fan, np.array([self._azimuth_offset(_check_step(step))]), out)
+        return out[0]
 
     def scan(self, occupied: np.ndarray, origin, res: float, positions: np.ndarray, yaws: np.ndarray,
              step: int, uav_radius: float, rng: np.random.Generator | None = None) -> Scan:
@@ -104,9 +103,9 @@ class RangeSensor:
         if noisy and not isinstance(rng, np.random.Generator):
             raise ValueError(f"rng: expected a numpy Generator when SensorConfig.noise_std > 0, got {type(rng).__name__}")
 
-        world_azimuths = self._azimuths[None, :] + self._azimuth_offset(step) + yaws[:, None]
-        dirs = np.ascontiguousarray(self._unit_vectors(world_azimuths))
-        n, r = dirs.shape[:2]
+        n, r = positions.shape[0], self._fan.shape[0]
+        dirs = np.empty((n, r, 3))
+        _rotate_fan(self._fan, yaws + self._azimuth_offset(step), dirs)
         ranges = np.empty((n, r))
         kind = np.empty((n, r), np.int8)
         endpoints = np.empty((n, r, 3))
@@ -125,6 +124,17 @@ def _check_step(step) -> int:
     if isinstance(step, bool) or not isinstance(step, (int, np.integer)):
         raise ValueError(f"step={step!r}: expected an integer simulation step")
     return int(step)
+
+
+@numba.njit(cache=True)
+def _rotate_fan(fan, angles, out):
+    """out[n] = the fan (R, 3) rotated about z by angles[n]."""
+    for n in range(angles.shape[0]):
+        c, s = math.cos(angles[n]), math.sin(angles[n])
+        for r in range(fan.shape[0]):
+            out[n, r, 0] = c * fan[r, 0] - s * fan[r, 1]
+            out[n, r, 1] = s * fan[r, 0] + c * fan[r, 1]
+            out[n, r, 2] = fan[r, 2]
 
 
 @numba.njit(cache=True, inline="always")
