@@ -372,11 +372,12 @@ def _integrate(grid, stamp, counts, bits, dirty, key0, res, origin, endpoints, h
                     marks[v] = _HIT
                     touched[n] = v
                     n += 1
+    kx0, ky0, kz0 = key0[0], key0[1], key0[2]
     for r in range(n_rays):  # misses, one per voxel and scan
         m = ray_keys(ox, oy, oz, ends[r, 0], ends[r, 1], ends[r, 2], res, keys)
         for q in range(m):
-            i, j, k = keys[q, 0] - key0[0], keys[q, 1] - key0[1], keys[q, 2] - key0[2]
-            if 0 <= i < nx and 0 <= j < ny and 0 <= k < nz:
+            i, j, k = keys[q, 0] - kx0, keys[q, 1] - ky0, keys[q, 2] - kz0
+            if (i | j | k) >= 0 and i < nx and j < ny and k < nz:
                 v = (i * ny + j) * nz + k
                 if marks[v] == _UNTOUCHED:
                     marks[v] = _MISS
@@ -388,11 +389,11 @@ def _integrate(grid, stamp, counts, bits, dirty, key0, res, origin, endpoints, h
         if marks[v] == _HIT:
             _update_voxel(flat, counts, bits, v, l_hit, l_min, l_max, l_occ, ny, nz)
         marks[v] = _UNTOUCHED
-    if n > 0:  # every segment lies in the box of its end keys: a conservative changed region
+    if n > 0:  # segments stay in the box of their end keys (+1 voxel of DDA drift): the changed region
         shape = (nx, ny, nz)
         for a in range(3):
-            dirty[a] = min(dirty[a], max(lo[a], 0))
-            dirty[a + 3] = max(dirty[a + 3], min(hi[a], shape[a] - 1))
+            dirty[a] = min(dirty[a], max(lo[a] - 1, 0))
+            dirty[a + 3] = max(dirty[a + 3], min(hi[a] + 1, shape[a] - 1))
 
 
 @numba.njit(cache=True)

@@ -148,6 +148,7 @@ def _inset(x, key, res):
 def _cast_rays(occupied, key0, res, positions, dirs, r_max, uav_radius, ranges, kind, endpoints):
     """Fill ranges, kind and endpoints for every (UAV, ray); see ``RangeSensor.scan``."""
     nx, ny, nz = occupied.shape
+    cells = occupied.reshape(nx * ny * nz)
     inv_res = 1.0 / res
     n_uav, n_ray = dirs.shape[0], dirs.shape[1]
     for a in range(n_uav):
@@ -195,21 +196,21 @@ def _cast_rays(occupied, key0, res, positions, dirs, r_max, uav_radius, ranges, 
                     axis = next_axis(tx, ty, tz)
                     if axis == 0:
                         t = tx
-                        kx += sx
+                        i += sx
                         tx += ddx
                     elif axis == 1:
                         t = ty
-                        ky += sy
+                        j += sy
                         ty += ddy
                     else:
                         t = tz
-                        kz += sz
+                        k += sz
                         tz += ddz
                     if t > t_lim:
                         break
-                    i, j, k = kx - key0[0], ky - key0[1], kz - key0[2]
-                    if 0 <= i < nx and 0 <= j < ny and 0 <= k < nz and occupied[i, j, k]:
+                    if (i | j | k) >= 0 and i < nx and j < ny and k < nz and cells[(i * ny + j) * nz + k]:
                         t_hit = t
+                        kx, ky, kz = i + key0[0], j + key0[1], k + key0[2]
                         break
             if t_hit >= 0.0 or ground:
                 t = t_hit if t_hit >= 0.0 else t_lim
