@@ -22,16 +22,16 @@ import numpy as np
 _ORIGIN_TOL = 1e-6
 
 
-def grid_origin_key(origin, res: float, name: str = "origin") -> np.ndarray:
+def grid_origin_key(origin, res: float) -> np.ndarray:
     """The key (int64 (3,)) of a grid's lower corner; ValueError unless it is a multiple of ``res``."""
     if isinstance(res, bool) or not isinstance(res, (int, float, np.floating)) or not math.isfinite(res) or res <= 0:
         raise ValueError(f"res={res!r}: expected a finite voxel size > 0")
     o = np.asarray(origin, dtype=np.float64)
     if o.shape != (3,) or not np.all(np.isfinite(o)):
-        raise ValueError(f"{name}={origin!r}: expected 3 finite coordinates (x, y, z)")
+        raise ValueError(f"origin={origin!r}: expected 3 finite coordinates (x, y, z)")
     key = np.round(o / res)
     if np.any(np.abs(o / res - key) > _ORIGIN_TOL):
-        raise ValueError(f"{name}={o.tolist()}: expected a multiple of the voxel size {res!r} "
+        raise ValueError(f"origin={o.tolist()}: expected a multiple of the voxel size {res!r} "
                          "(voxel centres must coincide with OctoMap's)")
     return key.astype(np.int64)
 
