@@ -173,7 +173,8 @@ def test_matches_independent_slab_caster(seed, density):
 def test_bad_input_raises_value_error():
     sensor = RangeSensor(LEVEL)
     occ = np.zeros((4, 4, 4), np.uint8)
-    ok = dict(occupied=occ, origin=(0, 0, 0), res=RES, positions=np.zeros((1, 3)), yaws=np.zeros(1), step=0, uav_radius=0.3)
+    ok = dict(occupied=occ, origin=(0, 0, 0), res=RES, positions=np.zeros((1, 3)), yaws=np.zeros(1), step=0,
+              uav_radius=0.3)
     for name, bad in [("occupied", occ.astype(bool)), ("origin", (0.05, 0, 0)), ("positions", np.zeros((1, 2))),
                       ("yaws", np.zeros(2)), ("uav_radius", -1.0), ("step", 1.5), ("res", 0.0)]:
         with pytest.raises(ValueError, match=name):

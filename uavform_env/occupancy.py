@@ -73,7 +73,7 @@ class OccupancyMap:
         self._levels = [_empty_level(self._key0, self._shape)]
         self._dirty = _empty_region()  # voxels changed since the pyramid was last refreshed
         self._n_levels = 1
-        while self._n_levels <= MAX_LEVEL and any(n > 1 for n in _level_shape(self._key0, self._shape, self._n_levels - 1)):
+        while self._n_levels <= MAX_LEVEL and max(_level_shape(self._key0, self._shape, self._n_levels - 1)) > 1:
             self._n_levels += 1
 
     # ------------------------------------------------------------------ properties

@@ -95,13 +95,15 @@ class RangeSensor:
             raise ValueError(f"positions: expected finite (N, 3) coordinates, got shape {positions.shape}")
         yaws = np.asarray(yaws, dtype=np.float64)
         if yaws.shape != (positions.shape[0],) or not np.all(np.isfinite(yaws)):
-            raise ValueError(f"yaws: expected {positions.shape[0]} finite angles (one per position), got shape {yaws.shape}")
+            raise ValueError(f"yaws: expected {positions.shape[0]} finite angles (one per position), "
+                             f"got shape {yaws.shape}")
         if isinstance(uav_radius, bool) or not np.isfinite(uav_radius) or uav_radius < 0:
             raise ValueError(f"uav_radius={uav_radius!r}: expected a finite radius >= 0")
         step = _check_step(step)
         noisy = self.cfg.noise_std > 0.0
         if noisy and not isinstance(rng, np.random.Generator):
-            raise ValueError(f"rng: expected a numpy Generator when SensorConfig.noise_std > 0, got {type(rng).__name__}")
+            raise ValueError("rng: expected a numpy Generator when SensorConfig.noise_std > 0, "
+                             f"got {type(rng).__name__}")
 
         n, r = positions.shape[0], self._fan.shape[0]
         dirs = np.empty((n, r, 3))
