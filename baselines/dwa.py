@@ -1,0 +1,580 @@
+"""Dynamic Window Approach: standard DWA (spec (b)) and improved DWA (spec (c)) in one planner.
+
+The improvements E8 (target-distance correction), E10 (A*-aligned heading weight) and E11
+(rotation cost) are switches of ``DWAConfig``. The ablation of spec (h) therefore compares
+planners that share every other line of code. Rollouts use the environment's own integrator, so a
+sample the planner calls safe is exactly the motion the simulator produces.
+
+Horizontal terms (heading, goal distances, alignment) use x, y only: DWA chooses the horizontal
+motion, and altitude comes from the caller's ``vz_cmd``. Clearance is 3D, with the rollout
+altitude ``z_k = z + vz_cmd * k * dt`` (spec (g5)).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+import numba
+import numpy as np
+
+from uavform_env.config import UAVLimits, _check_choice, _check_range, _Config
+from uavform_env.dynamics import integrate, wrap
+
+NORM_MODES = ("sum", "minmax")
+HEADING_REFS = ("endpoint", "current")
+ASTAR_WEIGHT_MODES = ("per_candidate", "per_step")
+ROTATION_MODES = ("abs", "delta")
+ROT_WEIGHT_MODES = ("proximity", "alignment")
+IMPROVEMENT_FLAGS = ("use_goal_dist_correction", "use_astar_weight", "use_rotation_cost")
+# Ablation names of spec (c5) -> values of IMPROVEMENT_FLAGS (E8, E10, E11).
+ABLATIONS = {
+    "DWA": (False, False, False),
+    "DWA+E8": (True, False, False),
+    "DWA+E8+E10": (True, True, False),
+    "IDWA": (True, True, True),
+}
+_TIE_TOL = 1e-12  # relative: scores (and |w|) this close count as equal, so the tie rule decides
+
+
+@dataclass(frozen=True)
+class DWAConfig(_Config):
+    """Weights, horizon and the E8/E10/E11 switches of the DWA planner (spec (b), (c), Appendix A).
+
+    Fields tagged [X] in the spec are reconstructions and stay configurable:
+    ``heading_ref``, ``approach_speed_profile``, ``astar_weight_mode``, ``rotation_mode``,
+    ``rot_weight_mode``, and ``alpha0``, ``kappa``, ``R_sw``, ``eps0``, ``d_in``, ``d_out``.
+    ``R_sw=None`` means one horizon of travel at full speed, ``UAVLimits.v_max * T_p``.
+    ``R_uu`` is the separation to moving neighbours below which a sample is inadmissible (g6).
+    """
+
+    T_p: float = 3.0
+    alpha: float = 0.1
+    beta: float = 0.2
+    gamma: float = 0.1
+    D_cap: float = 2.0
+    norm: str = "sum"
+    r_goal: float = 0.5
+    v_res: float = 0.01
+    w_res: float = math.radians(1.0)
+    use_goal_dist_correction: bool = False
+    use_astar_weight: bool = False
+    use_rotation_cost: bool = False
+    alpha0: float = 0.1
+    kappa: float = 0.2
+    R_sw: float | None = None
+    heading_ref: str = "endpoint"
+    approach_speed_profile: bool = False
+    astar_weight_mode: str = "per_candidate"
+    eps0: float = 0.05
+    d_in: float = 0.3
+    d_out: float = 2.0
+    rotation_mode: str = "abs"
+    rot_weight_mode: str = "proximity"
+    R_uu: float = 0.8
+
+    def __post_init__(self):
+        o = "DWAConfig"
+        _check_range(o, "T_p", self.T_p, 0.0, 60.0, lo_open=True)
+        for name in ("alpha", "beta", "gamma", "alpha0", "eps0"):
+            _check_range(o, name, getattr(self, name), 0.0, None)
+        for name in ("D_cap", "r_goal", "v_res", "w_res", "R_uu"):
+            _check_range(o, name, getattr(self, name), 0.0, None, lo_open=True)
+        _check_choice(o, "norm", self.norm, NORM_MODES)
+        for name in IMPROVEMENT_FLAGS + ("approach_speed_profile",):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{o}.{name}={getattr(self, name)!r}: expected a bool")
+        _check_range(o, "kappa", self.kappa, 0.0, 1.0, hi_open=True)
+        if self.R_sw is not None:
+            _check_range(o, "R_sw", self.R_sw, 0.0, None, lo_open=True)
+        _check_choice(o, "heading_ref", self.heading_ref, HEADING_REFS)
+        _check_choice(o, "astar_weight_mode", self.astar_weight_mode, ASTAR_WEIGHT_MODES)
+        _check_choice(o, "rotation_mode", self.rotation_mode, ROTATION_MODES)
+        _check_choice(o, "rot_weight_mode", self.rot_weight_mode, ROT_WEIGHT_MODES)
+        _check_range(o, "d_in", self.d_in, 0.0, None)
+        _check_range(o, "d_out", self.d_out, 0.0, None)
+        if not self.d_in < self.d_out:
+            raise ValueError(f"{o}.d_out={self.d_out!r} must exceed d_in={self.d_in!r} (the rotation weight "
+                             "ramps from 0 at d_in to eps0 at d_out)")
+        if self.approach_speed_profile and not self.use_goal_dist_correction:
+            raise ValueError(f"{o}.approach_speed_profile=True needs use_goal_dist_correction=True "
+                             "(it is part of E8 and acts where the E8 blend lambda < 1)")
+
+    @classmethod
+    def ablation(cls, name: str, **overrides) -> DWAConfig:
+        """The named ablation of spec (c5): ``DWA``, ``DWA+E8``, ``DWA+E8+E10`` or ``IDWA`` (E8+E10+E11)."""
+        if name not in ABLATIONS:
+            raise ValueError(f"DWAConfig.ablation name={name!r}: expected one of {list(ABLATIONS)}")
+        fixed = sorted(set(overrides) & set(IMPROVEMENT_FLAGS))
+        if fixed:
+            raise ValueError(f"DWAConfig.ablation: {fixed} are set by the name {name!r}; do not override them")
+        unknown = sorted(set(overrides) - {f.name for f in fields(cls)})
+        if unknown:
+            raise ValueError(f"DWAConfig.ablation: unknown field(s) {unknown}")
+        return cls(**dict(zip(IMPROVEMENT_FLAGS, ABLATIONS[name])), **overrides)
+
+
+@dataclass(frozen=True)
+class DWACandidates:
+    """Every sample of one planning cycle, for diagnostics and plots (inadmissible score = -inf).
+
+    ``clearance`` is exact below max(D_cap, d_brake(v)) and capped there; for an inadmissible
+    sample it is only some value below the admissibility bound (evaluation stops early).
+    """
+
+    v: np.ndarray
+    w: np.ndarray
+    admissible: np.ndarray
+    clearance: np.ndarray
+    score: np.ndarray
+    endpoint: np.ndarray
+
+
+@dataclass(frozen=True)
+class DWAResult:
+    """The chosen command; ``admissible=False`` is the braking fallback of spec (b10) (a 'stuck' step).
+
+    ``endpoint`` (x, y, z) and ``clearance`` belong to the chosen rollout (for the fallback: the
+    braking rollout); the clearance is capped at max(D_cap, d_brake(v)). ``alignment`` is the E10
+    cosine c of that endpoint against the lookahead direction; feed it back as ``prev_alignment``
+    for the per-step and alignment modes.
+    """
+
+    v: float
+    w: float
+    admissible: bool
+    n_admissible: int
+    score: float
+    endpoint: np.ndarray
+    clearance: float
+    alignment: float
+    candidates: DWACandidates
+
+
+def _finite(name: str, value) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(value):
+        raise ValueError(f"{name}={value!r}: expected a finite number")
+    return float(value)
+
+
+def _array(name: str, value, shape_text: str, ndim: int, last: tuple | None = None) -> np.ndarray:
+    """A contiguous float64 array with ``ndim`` dims whose last dim is in ``last``; finite values only."""
+    arr = np.ascontiguousarray(value, dtype=np.float64)
+    if arr.ndim != ndim or (last is not None and arr.shape[-1] not in last):
+        raise ValueError(f"{name}: expected shape {shape_text}, got {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ValueError(f"{name}: expected finite values")
+    return arr
+
+
+def _window_bounds(v0, w0, limits: UAVLimits, v_cap) -> tuple[float, float, float, float]:
+    """(v_lo, v_hi, w_lo, w_hi) of V_s ∩ V_d; a v_cap below one step of braking collapses v onto v_lo."""
+    v0 = _finite("v0", v0)
+    w0 = _finite("w0", w0)
+    tol = 1e-9
+    if not limits.v_min - tol <= v0 <= limits.v_max + tol:
+        raise ValueError(f"v0={v0!r}: expected a speed inside UAVLimits [v_min, v_max] = "
+                         f"[{limits.v_min:g}, {limits.v_max:g}]")
+    if not abs(w0) <= limits.w_max + tol:
+        raise ValueError(f"w0={w0!r}: expected a yaw rate inside UAVLimits [-w_max, w_max] = "
+                         f"[{-limits.w_max:g}, {limits.w_max:g}]")
+    v_lo = max(limits.v_min, v0 - limits.a_max * limits.dt)
+    v_hi = max(v_lo, min(limits.v_max, v0 + limits.a_max * limits.dt))
+    if v_cap is not None:
+        v_cap = _finite("v_cap", v_cap)
+        if v_cap < 0.0:
+            raise ValueError(f"v_cap={v_cap!r}: expected a speed >= 0")
+        v_hi = max(v_lo, min(v_hi, v_cap))
+    w_lo = max(-limits.w_max, w0 - limits.dw_max * limits.dt)
+    w_hi = min(limits.w_max, w0 + limits.dw_max * limits.dt)
+    return v_lo, v_hi, w_lo, w_hi
+
+
+def window_samples(v0: float, w0: float, limits: UAVLimits, cfg: DWAConfig,
+                   v_cap: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Flat samples (vs, ws) of the dynamic window V_s ∩ V_d (spec (b1)-(b3)).
+
+    Both end points of each axis are included, and w = 0 whenever it is inside the window, so
+    flying straight and the extreme manoeuvres are always candidates. ``v_cap`` lowers the top
+    speed (leader cap, deadlock yield); a cap below what one step of braking reaches collapses the
+    speed axis onto the hardest braking speed.
+    """
+    return _window_grid(*_window_bounds(v0, w0, limits, v_cap), cfg.v_res, cfg.w_res)
+
+
+# ----------------------------------------------------------------------------------- kernels
+
+
+@numba.njit(cache=True)
+def _axis(lo, hi, res):
+    """lo, lo + res, ... and hi itself, plus 0 when lo <= 0 <= hi (sorted).
+
+    Grid points within 1e-9 * res of hi or 0 are moved onto them (never lo or hi themselves), so
+    rounding does not add a near-duplicate sample. (0 can only matter for w: v_lo >= v_min >= 0.)
+    """
+    tol = 1e-9 * res
+    n = int(math.floor((hi - lo) / res + 1e-9)) + 1
+    grid = np.empty(n + 2)  # room for hi and 0
+    for i in range(n):
+        grid[i] = lo + i * res
+    if n > 1 and hi - grid[n - 1] <= tol:
+        grid[n - 1] = hi
+    elif hi > grid[n - 1]:
+        grid[n] = hi
+        n += 1
+    if lo <= 0.0 <= hi:
+        p = 0
+        while grid[p] < 0.0:  # first point >= 0; exists because hi >= 0
+            p += 1
+        if grid[p] != 0.0:
+            if p < n - 1 and grid[p] <= tol:
+                grid[p] = 0.0
+            elif p > 1 and grid[p - 1] >= -tol:
+                grid[p - 1] = 0.0
+            else:
+                for i in range(n, p, -1):
+                    grid[i] = grid[i - 1]
+                grid[p] = 0.0
+                n += 1
+    return grid[:n]
+
+
+@numba.njit(cache=True)
+def _window_grid(v_lo, v_hi, w_lo, w_hi, v_res, w_res):
+    """All (v, w) pairs of the two axes, flattened v-major."""
+    v_axis = _axis(v_lo, v_hi, v_res)
+    w_axis = _axis(w_lo, w_hi, w_res)
+    vs = np.empty(v_axis.size * w_axis.size)
+    ws = np.empty(v_axis.size * w_axis.size)
+    for i in range(v_axis.size):
+        for j in range(w_axis.size):
+            vs[i * w_axis.size + j] = v_axis[i]
+            ws[i * w_axis.size + j] = w_axis[j]
+    return vs, ws
+
+
+@numba.njit(cache=True)
+def _rollout(x, y, z, psi, v, w, vz, dt, path):
+    """Fill ``path`` (n, 4) with the poses (x, y, z, psi) after 1..n steps of constant input."""
+    for k in range(path.shape[0]):
+        x, y, z, psi = integrate(x, y, z, psi, v, w, vz, dt)
+        path[k, 0] = x
+        path[k, 1] = y
+        path[k, 2] = z
+        path[k, 3] = psi
+
+
+@numba.njit(cache=True)
+def _nearby(obstacles, radii, x0, y0, z0, reach):
+    """The obstacles whose surface is closer than ``reach`` to (x0, y0, z0), copied out once per cycle."""
+    keep = np.empty(obstacles.shape[0], dtype=np.int64)
+    m = 0
+    for o in range(obstacles.shape[0]):
+        dx, dy, dz = obstacles[o, 0] - x0, obstacles[o, 1] - y0, obstacles[o, 2] - z0
+        lim = reach + radii[o]
+        if dx * dx + dy * dy + dz * dz < lim * lim:
+            keep[m] = o
+            m += 1
+    near = np.empty((m, 3))
+    near_radii = np.empty(m)
+    for i in range(m):
+        near[i, :] = obstacles[keep[i], :]
+        near_radii[i] = radii[keep[i]]
+    return near, near_radii
+
+
+@numba.njit(cache=True)
+def _static_clearance(path, x0, y0, z0, step_len, obstacles, radii, r_uav, cap, stop_below):
+    """min_k min_o |p_k - o| - R_o - r_uav over the rollout, exact below ``cap`` (spec (b5)).
+
+    Returns early once the value drops below ``stop_below`` (d_brake: the sample is inadmissible
+    whatever the exact value). An obstacle out of reach of the whole rollout costs one squared
+    distance; along the rollout an obstacle is rechecked only once the path (at most ``step_len``
+    per step) could beat the current minimum.
+    """
+    n = path.shape[0]
+    reach = step_len * n
+    best = cap
+    for o in range(obstacles.shape[0]):
+        ox, oy, oz = obstacles[o, 0], obstacles[o, 1], obstacles[o, 2]
+        rad = radii[o] + r_uav
+        lim = reach + best + rad
+        dx, dy, dz = ox - x0, oy - y0, oz - z0
+        if dx * dx + dy * dy + dz * dz >= lim * lim:
+            continue
+        k = 0
+        while k < n:
+            dx, dy, dz = path[k, 0] - ox, path[k, 1] - oy, path[k, 2] - oz
+            c = math.sqrt(dx * dx + dy * dy + dz * dz) - rad
+            if c < best:
+                best = c
+                if best < stop_below:
+                    return best
+            if step_len <= 0.0:
+                break
+            skip = (c - best) / step_len
+            if skip >= n:
+                break
+            k += 1 + int(skip)
+    return best
+
+
+@numba.njit(cache=True)
+def _mover_clearance(path, dt, movers_pos, movers_vel, R_uu):
+    """min_k min_m |p_k - m(t_k)| - R_uu, movers predicted at constant velocity (spec (g6))."""
+    best = math.inf
+    for m in range(movers_pos.shape[0]):
+        for k in range(path.shape[0]):
+            t = (k + 1) * dt
+            dx = path[k, 0] - (movers_pos[m, 0] + movers_vel[m, 0] * t)
+            dy = path[k, 1] - (movers_pos[m, 1] + movers_vel[m, 1] * t)
+            dz = path[k, 2] - (movers_pos[m, 2] + movers_vel[m, 2] * t)
+            c = math.sqrt(dx * dx + dy * dy + dz * dz) - R_uu
+            if c < best:
+                best = c
+                if best < 0.0:
+                    return best
+    return best
+
+
+@numba.njit(cache=True)
+def _heading(bearing, psi_end):
+    """Standard azimuth term (pi - |theta|)/pi with theta = wrap(bearing - psi_end) (eq. 5)."""
+    return (math.pi - abs(wrap(bearing - psi_end))) / math.pi
+
+
+@numba.njit(cache=True)
+def _alignment(ax, ay, bx, by, psi_end):
+    """Cosine c between the global direction a and the endpoint direction b (spec (c3)).
+
+    A vanishing a (lookahead at the UAV) gives c = 1, i.e. the full weight alpha0.
+    """
+    a_norm = math.hypot(ax, ay)
+    if a_norm < 1e-9:
+        return 1.0
+    b_norm = math.hypot(bx, by)
+    if b_norm < 1e-3:
+        bx, by, b_norm = math.cos(psi_end), math.sin(psi_end), 1.0
+    return min(1.0, max(-1.0, (ax * bx + ay * by) / (a_norm * b_norm)))
+
+
+@numba.njit(cache=True)
+def _heading_weight(alignment, alpha0, kappa):
+    """alpha = alpha0 * (kappa + (1 - kappa) * (1 + c) / 2) (eq. 10): alpha0 aligned, kappa*alpha0 opposite."""
+    return alpha0 * (kappa + (1.0 - kappa) * 0.5 * (1.0 + alignment))
+
+
+@numba.njit(cache=True)
+def _normalise(term, admissible, minmax):
+    """The term over the admissible set divided by its sum (b8) or mapped min-max to [0, 1].
+
+    A term whose sum is 0 (or which is constant, for min-max) cannot rank samples and becomes 0.
+    """
+    out = np.zeros(term.shape[0])
+    total, lo, hi = 0.0, math.inf, -math.inf
+    for i in range(term.shape[0]):
+        if admissible[i]:
+            total += term[i]
+            lo = min(lo, term[i])
+            hi = max(hi, term[i])
+    if minmax:
+        span = hi - lo
+        if span <= _TIE_TOL * max(1.0, abs(hi)):
+            return out
+        for i in range(term.shape[0]):
+            if admissible[i]:
+                out[i] = (term[i] - lo) / span
+    elif total != 0.0:
+        for i in range(term.shape[0]):
+            if admissible[i]:
+                out[i] = term[i] / total
+    return out
+
+
+@numba.njit(cache=True)
+def _select(score, vs, ws):
+    """Index of the best score; ties go to the smaller |w|, then the larger v (spec (c5)); -1 if none."""
+    best = -math.inf
+    for i in range(score.shape[0]):
+        best = max(best, score[i])
+    if best == -math.inf:
+        return -1
+    tol = _TIE_TOL * max(1.0, abs(best))
+    pick = -1
+    for i in range(score.shape[0]):
+        if score[i] < best - tol:
+            continue
+        if pick < 0:
+            pick = i
+            continue
+        dw = abs(ws[i]) - abs(ws[pick])
+        if dw < -_TIE_TOL or (dw <= _TIE_TOL and vs[i] > vs[pick]):
+            pick = i
+    return pick
+
+
+@numba.njit(cache=True)
+def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, obstacles, radii, r_uav,
+                 a_max, v_max, w_max, D_cap, movers_pos, movers_vel, R_uu, goal_x, goal_y, la_x, la_y,
+                 heading_from_current, lam, progress_reach, vel_target, rot_ref, alpha, kappa,
+                 alpha_per_candidate, beta, gamma, eps, minmax, exact_clearance):
+    """Window sampling, rollout, clearance, admissibility and the eq. 12 score of every sample.
+
+    ``lam`` < 1 blends the heading with distance progress (E8); ``vel_target`` < 0 means the plain
+    v / v_max term, otherwise 1 - |v - vel_target| / v_max; ``rot_ref`` is 0 (|w|) or w0 (|w - w0|).
+    ``exact_clearance`` evaluates inadmissible samples to the end instead of stopping early.
+    """
+    vs, ws = _window_grid(v_lo, v_hi, w_lo, w_hi, v_res, w_res)
+    n_samples = vs.shape[0]
+    x0, y0, z0, psi0 = state[0], state[1], state[2], state[3]
+    path = np.empty((n_steps, 4))
+    clearance = np.empty(n_samples)
+    admissible = np.zeros(n_samples, dtype=np.bool_)
+    endpoint = np.empty((n_samples, 4))
+    alignment = np.empty(n_samples)
+    heading = np.empty(n_samples)
+    dist = np.empty(n_samples)
+    vel = np.empty(n_samples)
+    rot = np.empty(n_samples)
+    rho_d = math.hypot(goal_x - x0, goal_y - y0)
+    bearing_now = math.atan2(goal_y - y0, goal_x - x0)
+    # no rollout gets farther than the fastest one; beyond its reach plus the clearance cap nothing counts
+    reach = dt * n_steps * math.sqrt(v_hi * v_hi + vz * vz) + max(D_cap, v_hi * v_hi / (2.0 * a_max)) + r_uav
+    obstacles, radii = _nearby(obstacles, radii, x0, y0, z0, reach)
+    for i in range(n_samples):
+        v, w = vs[i], ws[i]
+        _rollout(x0, y0, z0, psi0, v, w, vz, dt, path)
+        d_brake = v * v / (2.0 * a_max)
+        c = _static_clearance(path, x0, y0, z0, dt * math.sqrt(v * v + vz * vz), obstacles, radii, r_uav,
+                              max(D_cap, d_brake), -math.inf if exact_clearance else d_brake)
+        ok = c > 0.0 and c >= d_brake
+        if (ok or exact_clearance) and movers_pos.shape[0] > 0:
+            c_mover = _mover_clearance(path, dt, movers_pos, movers_vel, R_uu)
+            ok = ok and c_mover >= 0.0
+            c = min(c, c_mover)
+        clearance[i] = c
+        dist[i] = min(c, D_cap)
+        admissible[i] = ok
+        ex, ey, psi_end = path[n_steps - 1, 0], path[n_steps - 1, 1], path[n_steps - 1, 3]
+        endpoint[i, :] = path[n_steps - 1, :]
+        alignment[i] = _alignment(la_x - x0, la_y - y0, ex - x0, ey - y0, psi_end)
+        bearing = bearing_now if heading_from_current else math.atan2(goal_y - ey, goal_x - ex)
+        h = _heading(bearing, psi_end)
+        if lam < 1.0:  # E8 (eq. 8): blend with the distance progress Dg
+            progress = 1.0 - math.hypot(goal_x - ex, goal_y - ey) / (rho_d + progress_reach)
+            h = lam * h + (1.0 - lam) * progress
+        heading[i] = h
+        vel[i] = v / v_max if vel_target < 0.0 else 1.0 - abs(v - vel_target) / v_max
+        rot[i] = 1.0 - abs(w - rot_ref) / w_max
+    h_hat = _normalise(heading, admissible, minmax)
+    d_hat = _normalise(dist, admissible, minmax)
+    v_hat = _normalise(vel, admissible, minmax)
+    r_hat = _normalise(rot, admissible, minmax)
+    score = np.empty(n_samples)
+    for i in range(n_samples):
+        score[i] = -math.inf
+        if admissible[i]:
+            a = _heading_weight(alignment[i], alpha, kappa) if alpha_per_candidate else alpha
+            score[i] = a * h_hat[i] + beta * d_hat[i] + gamma * v_hat[i] + eps * r_hat[i]
+    return _select(score, vs, ws), vs, ws, score, clearance, admissible, endpoint, alignment
+
+
+# ----------------------------------------------------------------------------------- planner
+
+
+def _rotation_weight(cfg: DWAConfig, clearance_now: float, prev_alignment: float) -> float:
+    """eps_t of eq. 11: eps0 in open space fading to 0 near obstacles, or eps0 * (1 + c_prev) / 2."""
+    if not cfg.use_rotation_cost:
+        return 0.0
+    if cfg.rot_weight_mode == "alignment":
+        return cfg.eps0 * 0.5 * (1.0 + prev_alignment)
+    return cfg.eps0 * min(1.0, max(0.0, (clearance_now - cfg.d_in) / (cfg.d_out - cfg.d_in)))
+
+
+def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle_radius, *,
+             vz_cmd: float = 0.0, lookahead=None, clearance_now: float = math.inf, movers_pos=None,
+             movers_vel=None, v_ref: float | None = None, v_cap: float | None = None,
+             prev_alignment: float | None = None) -> DWAResult:
+    """One DWA planning cycle: the best admissible (v, w) of the dynamic window (spec (b), (c)).
+
+    state: (7,) row (x, y, z, psi, v, w, vz). goal, lookahead: (2,) or (3,); only x, y are used;
+    lookahead is P_LA of E10 (None -> goal). obstacles: (M, 3) centres with radius R_o
+    (``obstacle_radius`` (M,) or one number); the clearance is |p_k - o| - R_o - r_uav.
+    clearance_now: the UAV's current clearance d_min (E11 proximity weight).
+    movers_pos, movers_vel: (K, 3) neighbours, predicted at constant velocity and compared at the
+    same time step; a sample closer than R_uu to one is inadmissible and the gap minus R_uu counts
+    in the dist term. The braking test c >= d_brake(v) applies to static obstacles only: braking
+    does not open the gap to a moving neighbour, and it would forbid formation speed at 2 m spacing.
+    v_ref: follower speed matching of spec (g2), vel = 1 - |v - v_ref| / v_max (overrides the
+    approach speed profile). v_cap: speed cap (leader cap, deadlock yield).
+    prev_alignment: c of the previous cycle's choice (E10 per_step, E11 alignment; None -> 1).
+    If no sample is admissible, brakes: v = v_lo (= max(0, v0 - a_max dt) for v_min = 0), w = w0.
+    """
+    state = _array("state", state, "(7,) [x, y, z, psi, v, w, vz]", 1, (7,))
+    goal_xy = _array("goal", goal, "(2,) or (3,)", 1, (2, 3))
+    la_xy = goal_xy if lookahead is None else _array("lookahead", lookahead, "(2,) or (3,)", 1, (2, 3))
+    obstacles = np.empty((0, 3)) if np.size(obstacles) == 0 else _array("obstacles", obstacles, "(M, 3)", 2, (3,))
+    radii = np.full(obstacles.shape[0], _finite("obstacle_radius", np.asarray(obstacle_radius).item())) \
+        if np.ndim(obstacle_radius) == 0 else _array("obstacle_radius", obstacle_radius, "(M,)", 1)
+    if radii.shape != (obstacles.shape[0],) or not (radii >= 0).all():
+        raise ValueError(f"obstacle_radius: expected one radius >= 0 per obstacle ({obstacles.shape[0]}) or a "
+                         f"single number, got shape {radii.shape}")
+    if (movers_pos is None) != (movers_vel is None):
+        raise ValueError("movers_pos, movers_vel: pass both (K, 3) arrays or neither")
+    if movers_pos is None:
+        movers_pos = movers_vel = np.empty((0, 3))
+    else:
+        movers_pos = _array("movers_pos", movers_pos, "(K, 3)", 2, (3,))
+        movers_vel = _array("movers_vel", movers_vel, "(K, 3)", 2, (3,))
+        if movers_pos.shape != movers_vel.shape:
+            raise ValueError(f"movers_pos {movers_pos.shape} and movers_vel {movers_vel.shape}: expected equal shapes")
+    vz_cmd = _finite("vz_cmd", vz_cmd)
+    if math.isnan(clearance_now):
+        raise ValueError("clearance_now=nan: expected a number (inf in open space)")
+    if prev_alignment is None:
+        prev_alignment = 1.0
+    elif not -1.0 <= _finite("prev_alignment", prev_alignment) <= 1.0:
+        raise ValueError(f"prev_alignment={prev_alignment!r}: expected a cosine in [-1, 1]")
+    if v_ref is not None and not 0.0 <= _finite("v_ref", v_ref) <= limits.v_max:
+        raise ValueError(f"v_ref={v_ref!r}: expected a speed in [0, UAVLimits.v_max={limits.v_max:g}]")
+    n_steps = round(cfg.T_p / limits.dt)
+    if n_steps < 1:
+        raise ValueError(f"DWAConfig.T_p={cfg.T_p!r} is shorter than one step (UAVLimits.dt={limits.dt!r})")
+
+    v_lo, v_hi, w_lo, w_hi = _window_bounds(state[4], state[5], limits, v_cap)
+    reach = limits.v_max * cfg.T_p
+    rho_d = math.hypot(goal_xy[0] - state[0], goal_xy[1] - state[1])
+    lam = min(1.0, rho_d / (reach if cfg.R_sw is None else cfg.R_sw)) if cfg.use_goal_dist_correction else 1.0
+    if v_ref is not None:
+        vel_target = v_ref
+    elif cfg.approach_speed_profile and lam < 1.0:
+        vel_target = min(limits.v_max, math.sqrt(2.0 * limits.a_max * max(rho_d - cfg.r_goal, 0.0)))
+    else:
+        vel_target = -1.0
+    per_candidate = cfg.use_astar_weight and cfg.astar_weight_mode == "per_candidate"
+    if not cfg.use_astar_weight:
+        alpha = cfg.alpha
+    elif per_candidate:
+        alpha = cfg.alpha0
+    else:
+        alpha = _heading_weight(prev_alignment, cfg.alpha0, cfg.kappa)
+
+    def run(v_lo_, v_hi_, w_lo_, w_hi_, exact_clearance):
+        return _plan_kernel(state, v_lo_, v_hi_, w_lo_, w_hi_, cfg.v_res, cfg.w_res, vz_cmd, limits.dt, n_steps,
+                            obstacles, radii, limits.r_uav, limits.a_max, limits.v_max, limits.w_max, cfg.D_cap,
+                            movers_pos, movers_vel, cfg.R_uu, goal_xy[0], goal_xy[1], la_xy[0], la_xy[1],
+                            cfg.heading_ref == "current", lam, reach, vel_target,
+                            state[5] if cfg.rotation_mode == "delta" else 0.0, alpha, cfg.kappa, per_candidate,
+                            cfg.beta, cfg.gamma, _rotation_weight(cfg, clearance_now, prev_alignment),
+                            cfg.norm == "minmax", exact_clearance)
+
+    pick, vs, ws, score, clearance, admissible, endpoint, alignment = run(v_lo, v_hi, w_lo, w_hi, False)
+    candidates = DWACandidates(vs, ws, admissible, clearance, score, endpoint[:, :3])
+    if pick >= 0:
+        return DWAResult(float(vs[pick]), float(ws[pick]), True, int(admissible.sum()), float(score[pick]),
+                         endpoint[pick, :3].copy(), float(clearance[pick]), float(alignment[pick]), candidates)
+    brake_w = min(max(state[5], w_lo), w_hi)
+    _, _, _, _, brake_clearance, _, brake_end, brake_alignment = run(v_lo, v_lo, brake_w, brake_w, True)
+    return DWAResult(v_lo, float(brake_w), False, 0, math.nan, brake_end[0, :3].copy(), float(brake_clearance[0]),
+                     float(brake_alignment[0]), candidates)
