@@ -48,11 +48,18 @@ class ExpertConfig(_Config):
     geofence_spacing   the world's x/y bounds enter DWA as walls of points this far apart [X]
     rejoin_distance    a follower farther than this from its slot rejoins along its own A* path (the same
                        planner the leader runs), heading for the path's lookahead point [X]
+    arrive_radius      the leader stops and holds once this close to the goal (the DWA stopping rule of (b10))
+    gap_lookahead, gap_depth, gap_margin, k_gap  the known-gap altitude rule of the vertical decision: when
+                       no open level way lies within ``level_window`` of the target and the own map shows a
+                       blocked level within ``gap_lookahead`` m ahead, fly to the altitude of the known-free
+                       vertical run through the next ``gap_depth`` m of obstacle (3D VFH+'s 5x5 window cannot
+                       resolve gaps of about 2 m) with altitude gain ``k_gap``, at most ``gap_speed`` m/s
+                       and with leaf voxels as DWA obstacles while it passes [X]
     """
 
-    dwa: DWAConfig = field(default_factory=lambda: DWAConfig.ablation("IDWA"))
+    dwa: DWAConfig = field(default_factory=lambda: DWAConfig.ablation("IDWA", approach_speed_profile=True))
     vfh: VFHConfig = field(default_factory=VFHConfig)
-    astar: AStarConfig = field(default_factory=AStarConfig)
+    astar: AStarConfig = field(default_factory=lambda: AStarConfig(prune=True))
     use_vfh: bool = True
     neighbour_prediction: bool = True
     shape_switching: bool = True
@@ -74,6 +81,12 @@ class ExpertConfig(_Config):
     level_window: float = math.radians(30.0)
     geofence_spacing: float = 0.4
     rejoin_distance: float = 4.0
+    arrive_radius: float = 0.3
+    gap_lookahead: float = 4.0
+    gap_depth: float = 1.0
+    gap_margin: float = 0.1
+    k_gap: float = 1.0
+    gap_speed: float = 0.3
 
     def __post_init__(self):
         o = "ExpertConfig"
@@ -87,7 +100,8 @@ class ExpertConfig(_Config):
         _check_int(o, "dwa_map_level", self.dwa_map_level, 0, 4)
         _check_int(o, "debounce", self.debounce, 1, 100)
         for name in ("replan_check_period", "k_f", "k_h", "k_z", "T_stuck", "climb_lookahead", "column_hold",
-                     "vfh_neighbour_radius", "rejoin_distance"):
+                     "vfh_neighbour_radius", "rejoin_distance", "arrive_radius", "gap_lookahead", "gap_depth", "gap_margin",
+                     "k_gap", "gap_speed"):
             _check_range(o, name, getattr(self, name), 0.0, None)
         _check_range(o, "leader_speed_cap", self.leader_speed_cap, 0.0, 1.0, lo_open=True)
         _check_range(o, "yield_factor", self.yield_factor, 0.0, 1.0)
@@ -175,6 +189,9 @@ class FusionExpert(OnboardPolicy):
             return np.zeros(3)
 
         z_slot = view.z_ref + view.slot_offset[2]
+        if view.is_leader and np.linalg.norm(view.goal[:2] - pos[:2]) < cfg.arrive_radius:
+            self.diagnostics[view.agent] = {"mode": mem.mode, "stuck": False, "arrived": True, "replans": mem.replans}
+            return np.array([0.0, 0.0, float(np.clip(cfg.k_z * (z_slot - pos[2]), -lim.vz_max, lim.vz_max))])
         if view.is_leader:
             goal, lookahead, v_cap, v_ref = self._leader_target(view, mem, cfg, t)
             if goal is None:                                    # unreachable: hold position safely
@@ -200,19 +217,29 @@ class FusionExpert(OnboardPolicy):
         emergency = False
         if cfg.use_vfh:
             centres, probs = view.occupancy.occupied_in_sphere(pos, cfg.vfh.R_w)
-            target = np.array([lookahead[0], lookahead[1], z_slot])
+            gap_z = _gap_altitude(view, lookahead, z_slot, cfg)
+            z_goal = z_slot if gap_z is None else gap_z
+            target = np.array([lookahead[0], lookahead[1], z_goal])
             close = view.neighbour_alive & (np.linalg.norm(movers_pos - pos, axis=1) < cfg.vfh_neighbour_radius)
             vfh_result = vfh3d_step(mem.vfh, cfg.vfh, lim, pos, s[PSI], s[V], s[VZ], target - pos, centres, probs,
                                     view.occupancy.resolution, movers_pos[close])
             emergency = vfh_result.emergency
-            mode = self._debounced_mode(mem, vfh_result, cfg, target - pos)
-            if mode == CLIMB and not vfh_result.blocked:
+            level_way = _level_way(vfh_result, cfg, target - pos)
+            mode = self._debounced_mode(mem, vfh_result, cfg, level_way, gap_z is not None)
+            if mode == CLIMB and gap_z is not None:
+                vz_cmd = float(np.clip(cfg.k_gap * (gap_z - pos[2]), -lim.vz_max, lim.vz_max))
+                v_cap = cfg.gap_speed if v_cap is None else min(v_cap, cfg.gap_speed)
+                if level > 0:                       # a gap leaves centimetres: use the leaf voxels
+                    obstacles, _ = view.occupancy.occupied_in_sphere(pos, reach, level=0)
+                    radius = view.occupancy.resolution * math.sqrt(3.0) / 2.0
+            elif mode == CLIMB and not vfh_result.blocked:
                 e = vfh_result.elevation
                 vz_cmd = float(np.clip(max(s[V], 0.3) * math.tan(e), -lim.vz_max, lim.vz_max))
-                az = vfh_result.azimuth
-                heading_goal = pos[:2] + cfg.climb_lookahead * np.array([math.cos(az), math.sin(az)])
             elif mode == BLOCKED:
                 vz_cmd = 0.0
+            if not vfh_result.blocked and not level_way and gap_z is None:
+                az = vfh_result.azimuth             # follow 3D VFH+ around what DWA cannot see past
+                heading_goal = pos[:2] + cfg.climb_lookahead * np.array([math.cos(az), math.sin(az)])
         else:
             obstacles = _project_to_altitude(obstacles, pos[2], lim.r_uav + lim.r_safe + radius)
             mem.mode = LEVEL
@@ -221,10 +248,17 @@ class FusionExpert(OnboardPolicy):
         if len(fence):
             obstacles = np.concatenate([obstacles, fence])
         radii = np.concatenate([np.full(len(obstacles) - len(fence), radius), np.zeros(len(fence))])
-        res = dwa_plan(s, lim, cfg.dwa, heading_goal, obstacles, radii, vz_cmd=vz_cmd, lookahead=lookahead,
-                       clearance_now=clearance_now, movers_pos=movers_pos[view.neighbour_alive],
-                       movers_vel=movers_vel[view.neighbour_alive], v_ref=v_ref, v_cap=v_cap,
-                       prev_alignment=mem.prev_alignment)
+        def plan(vz):
+            return dwa_plan(s, lim, cfg.dwa, heading_goal, obstacles, radii, vz_cmd=vz, lookahead=lookahead,
+                            clearance_now=clearance_now, movers_pos=movers_pos[view.neighbour_alive],
+                            movers_vel=movers_vel[view.neighbour_alive], v_ref=v_ref, v_cap=v_cap,
+                            prev_alignment=mem.prev_alignment)
+
+        res = plan(vz_cmd)
+        if not res.admissible and vz_cmd != 0.0:
+            held = plan(0.0)                     # the climb itself may be what collides: try holding altitude
+            if held.admissible:
+                res, vz_cmd = held, 0.0
         mem.prev_alignment = res.alignment if math.isfinite(res.alignment) else 1.0
         v_c, w_c = res.v, res.w
         if not res.admissible:
@@ -386,10 +420,15 @@ class FusionExpert(OnboardPolicy):
         return v_cap
 
     # ------------------------------------------------------------------ vertical decision (g4)
-    def _debounced_mode(self, mem: _UAVMemory, r, cfg: ExpertConfig, target_dir: np.ndarray) -> str:
-        if r.blocked:
+    def _debounced_mode(self, mem: _UAVMemory, r, cfg: ExpertConfig, level_way: bool, gap: bool) -> str:
+        """The vertical mode of (g4), changed only after ``debounce`` consecutive cycles agree."""
+        if level_way:
+            proposal = LEVEL
+        elif gap:
+            proposal = CLIMB
+        elif r.blocked:
             proposal = BLOCKED
-        elif abs(r.elevation) <= cfg.vfh.alpha_h / 2 + 1e-9 or _level_way(r, cfg, target_dir):
+        elif abs(r.elevation) <= cfg.vfh.alpha_h / 2 + 1e-9:
             proposal = LEVEL
         else:
             proposal = CLIMB
@@ -446,6 +485,67 @@ def _level_way(r, cfg: ExpertConfig, target_dir: np.ndarray) -> bool:
     azimuths = (np.arange(n_z) + 0.5) * cfg.vfh.alpha_h
     off = np.abs((azimuths - math.atan2(target_dir[1], target_dir[0]) + math.pi) % (2 * math.pi) - math.pi)
     return bool(np.any(level & (off <= cfg.level_window)))
+
+
+def _gap_altitude(view, target_xy, z_pref: float, cfg: ExpertConfig) -> float | None:
+    """The altitude to pass through a known vertical gap when the level way toward the target is blocked.
+
+    The own map's columns along the line to the target (out to ``gap_lookahead``) are tested at the
+    preferred altitude; if occupied voxels block that level, the known-free vertical runs of those
+    columns (tall enough for the UAV and its margin, inside the altitude band) are intersected and
+    the altitude nearest ``z_pref`` inside the common run is returned. Unknown voxels do not count as
+    free here: a gap has to be seen before the UAV commits to it. None: the level is clear, or no gap.
+    """
+    lim = view.limits
+    occ = view.occupancy
+    res = occ.resolution
+    pos = view.state[:3]
+    d = np.asarray(target_xy, dtype=np.float64) - pos[:2]
+    dist = float(np.hypot(d[0], d[1]))
+    if dist < 1e-6:
+        return None
+    u = d / dist
+    ts = np.arange(res, min(cfg.gap_lookahead, dist + res), res)
+    if ts.size == 0:
+        return None
+    xy = pos[:2] + ts[:, None] * u
+    ij = np.floor((xy - occ.origin[:2]) / res).astype(np.int64)
+    ok = np.all((ij >= 0) & (ij < np.asarray(occ.shape[:2])), axis=1)
+    if not ok.any():
+        return None
+    cols = occ.logodds[ij[ok, 0], ij[ok, 1], :]                      # (K, nz)
+    z = occ.origin[2] + (np.arange(cols.shape[1]) + 0.5) * res
+    h_b = lim.r_uav + lim.r_safe
+    band = np.abs(z - z_pref) <= h_b + res / 2
+    occupied = cols > 0.0
+    blocking = occupied[:, band].any(axis=1)
+    if not blocking.any():
+        return None
+    first = int(np.argmax(blocking))
+    span = max(1, int(round(cfg.gap_depth / res)))
+    wall = cols[first:first + span]
+    free = np.all(wall <= 0.0, axis=0)                                # known free in every column (NaN -> False)
+    inside = (z - res / 2 >= lim.z_min - h_b) & (z + res / 2 <= lim.z_max + h_b)
+    free &= inside
+    best, best_cost = None, math.inf
+    k = 0
+    n = free.size
+    while k < n:
+        if not free[k]:
+            k += 1
+            continue
+        j = k
+        while j < n and free[j]:
+            j += 1
+        lo, hi = z[k] - res / 2 + h_b, z[j - 1] + res / 2 - h_b   # centre range that keeps the margin
+        lo, hi = max(lo, lim.z_min), min(hi, lim.z_max)
+        if hi >= lo:
+            alt = min(max(z_pref, lo + cfg.gap_margin), hi - cfg.gap_margin) if hi - lo > 2 * cfg.gap_margin \
+                else 0.5 * (lo + hi)
+            if abs(alt - z_pref) < best_cost:
+                best, best_cost = alt, abs(alt - z_pref)
+        k = j
+    return best
 
 
 def _geofence(pos, reach: float, lo, hi, spacing: float) -> np.ndarray:
