@@ -116,13 +116,16 @@ class SensorConfig(_Config):
 
     ``interleave`` rotates the azimuth pattern by a fraction of one ray spacing every step (golden
     ratio sequence), so a coarse, fast pattern still covers every direction within a few steps.
+    Defaults [D]: 36 x 7 rays (10 deg x 14 deg, elevation +/-42 deg, odd so one row is level) and
+    r_max = 6 m, which covers the planners' reach (DWA: v_max T_p + D_cap + margins = 5.7 m; 3D VFH+: R_w = 5 m). The spec's
+    suggestion is r_max = 8 m; see docs/deviations.md.
     """
 
-    n_azimuth: int = 40
-    n_elevation: int = 9
-    elevation_min: float = math.radians(-40.0)
-    elevation_max: float = math.radians(40.0)
-    r_max: float = 8.0
+    n_azimuth: int = 36
+    n_elevation: int = 7
+    elevation_min: float = math.radians(-42.0)
+    elevation_max: float = math.radians(42.0)
+    r_max: float = 6.0
     noise_std: float = 0.0
     interleave: bool = True
 

@@ -152,11 +152,12 @@ class FormationEnv(ParallelEnv):
         self.agents = list(self.possible_agents)
         slots = self._true_slots()
         self._target_dist = self._target_distances(slots)
+        clearance, ferr = self._clearance(), formation_errors(self.states[:, :3], slots)
         self.history = {"positions": [self.states[:, :3].copy()], "yaw": [self.states[:, PSI].copy()],
-                        "w": [self.states[:, W].copy()], "formation_error": [formation_errors(self.states[:, :3], slots)],
-                        "clearance": [self._clearance()], "crashed": [self.crashed.copy()]}
+                        "w": [self.states[:, W].copy()], "formation_error": [ferr],
+                        "clearance": [clearance], "crashed": [self.crashed.copy()]}
         obs = self._observe()
-        infos = self._infos(slots, truncated=False)
+        infos = self._infos(clearance, self._separations(), ferr, self._target_dist, truncated=False)
         return obs, infos
 
     def _build_prior(self) -> PriorMap:
@@ -214,7 +215,7 @@ class FormationEnv(ParallelEnv):
         truncated = (not ended) and self.step_count >= self.max_cycles
         live = list(self.agents)
         obs = self._observe()
-        infos = self._infos(slots, truncated=truncated)
+        infos = self._infos(clearance, separation, ferr, target_dist, truncated=truncated)
         rewards = {a: float(rew[self.agent_name_mapping[a]]) for a in live}
         terminations = {a: bool(ended) for a in live}
         truncations = {a: bool(truncated) for a in live}
@@ -303,21 +304,15 @@ class FormationEnv(ParallelEnv):
                                  self.present)
         return {a: obs[i] for i, a in enumerate(self.possible_agents)}
 
-    def _infos(self, slots, truncated: bool) -> dict:
-        clearance = self._clearance()
-        sep = self._separations()
-        ferr = formation_errors(self.states[:, :3], slots)
+    def _infos(self, clearance, separation, ferr, target_dist, truncated: bool) -> dict:
         goal_dist = float(np.linalg.norm(self.states[0, :3] - self.goal))
-        tdist = self._target_distances(slots)
-        infos = {}
-        for i, a in enumerate(self.possible_agents):
-            infos[a] = {"clearance": float(clearance[i]), "separation": float(sep[i]),
-                        "formation_error": float(ferr[i]), "target_distance": float(tdist[i]),
-                        "goal_distance": goal_dist, "speed": float(self.states[i, V]),
-                        "altitude": float(self.states[i, 2]), "crashed": int(self.crashed[i]),
-                        "success": int(self.success), "step": int(self.step_count),
-                        "TimeLimit.truncated": bool(truncated)}
-        return infos
+        success, step = int(self.success), int(self.step_count)
+        return {a: {"clearance": float(clearance[i]), "separation": float(separation[i]),
+                    "formation_error": float(ferr[i]), "target_distance": float(target_dist[i]),
+                    "goal_distance": goal_dist, "speed": float(self.states[i, V]),
+                    "altitude": float(self.states[i, 2]), "crashed": int(self.crashed[i]), "success": success,
+                    "step": step, "TimeLimit.truncated": bool(truncated)}
+                for i, a in enumerate(self.possible_agents)}
 
     def _record(self, ferr, clearance):
         h = self.history
