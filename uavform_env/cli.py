@@ -80,6 +80,29 @@ def _scenarios(args) -> int:
     return 0
 
 
+def _leaderboard(args) -> int:
+    from .evaluation.runner import read_manifest, read_results, run_suite
+    from .evaluation.suites import load_suite, suite_from_manifest
+    from .evaluation.table import summarize, to_markdown, write_tables
+
+    if args.show:
+        manifest = read_manifest(args.show)
+        if manifest is None:
+            raise ValueError(f"--show {args.show!r}: no leaderboard results there (suite.json is missing)")
+        suite = suite_from_manifest(manifest, f"{args.show}/suite.json")
+        print(to_markdown(summarize(suite, read_results(args.show))), end="")
+        return 0
+    if not args.policy:
+        raise ValueError("give at least one --policy (or --show RESULTS_DIR)")
+    suite = load_suite(args.suite)
+    print(f"suite {suite.name}: {len(suite.episodes)} episodes, hash {suite.hash}", flush=True)
+    records = run_suite(suite, args.policy, args.out, workers=args.workers, backend=args.backend, resume=args.resume,
+                        time_limit=args.time_limit, progress=not args.quiet)
+    print(to_markdown(write_tables(suite, records, args.out)), end="")
+    print(f"wrote {args.out}/leaderboard.md, .csv, .json (marl-eval layout) and .png")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="uavform", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -105,6 +128,21 @@ def build_parser() -> argparse.ArgumentParser:
     scn.add_argument("--difficulty", default=None)
     scn.add_argument("--out", default="scenario.toml")
     scn.set_defaults(func=_scenarios)
+
+    lb = sub.add_parser("leaderboard", help="run a benchmark suite for some policies and write the ranked table")
+    lb.add_argument("--suite", default="v0", help="suite name or .toml path (default: v0; 'smoke' for CI)")
+    lb.add_argument("--policy", action="append", default=[],
+                    help="short name, module:attr or checkpoint path; repeat for several policies")
+    lb.add_argument("--out", default="results", help="results folder (default: results)")
+    lb.add_argument("--workers", type=int, default=1, help="parallel episodes (default: 1, in this process)")
+    lb.add_argument("--backend", choices=["process", "ray"], default="process",
+                    help="process pool (default) or Ray tasks (pip install 'uavform[ray]')")
+    lb.add_argument("--resume", action="store_true", help="continue a results folder, skipping finished episodes")
+    lb.add_argument("--time-limit", type=float, default=900.0,
+                    help="wall-clock seconds per episode before it is recorded as failed (default: 900)")
+    lb.add_argument("--show", metavar="RESULTS_DIR", default=None, help="print the table of a results folder and exit")
+    lb.add_argument("--quiet", action="store_true", help="no progress bar")
+    lb.set_defaults(func=_leaderboard)
 
     for ep in entry_points(group=COMMAND_GROUP):
         ep.load()(sub)

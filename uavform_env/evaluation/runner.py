@@ -1,0 +1,227 @@
+"""Running a suite for a list of policies: serial, on a process pool or on Ray, append-only and resumable.
+
+The results folder holds ``suite.json`` (the suite's manifest and hash, written once) and
+``results.jsonl`` (one JSON line per finished (episode, policy), appended atomically by the parent
+process only). A run skips every pair already in ``results.jsonl`` when resumed, so a killed run
+loses at most the episodes in flight. An exception inside a policy, or an episode that exceeds its
+wall-clock limit, becomes a ``failed`` record with its traceback; the run goes on.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import time
+import traceback
+import warnings
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from multiprocessing import get_context
+from pathlib import Path
+
+from ..files import append_line, atomic_write_json
+from .suites import Episode, Suite
+
+RESULTS_FILE = "results.jsonl"
+MANIFEST_FILE = "suite.json"
+BACKENDS = ("process", "ray")
+
+
+def play(episode: dict, policy_spec: str, time_limit: float | None) -> dict:
+    """Play one episode with a freshly loaded policy and return its results record (never raises).
+
+    A top-level function of plain arguments so process pools and Ray can ship it; a fresh env and
+    policy per episode make the metrics independent of which worker ran what before.
+    """
+    from ..formation_v0 import parallel_env
+    from ..policies import load_policy
+    from ..rollout import run_episode
+
+    ep = Episode(**episode)
+    record = {"episode": ep.key, "policy": policy_spec, **ep.to_dict()}
+    start = time.perf_counter()
+    try:
+        penv = parallel_env(**ep.env_kwargs())
+        metrics = run_episode(penv, load_policy(policy_spec), ep.seed, time_limit=time_limit)
+        record.update(status="ok", steps=int(penv.unwrapped.step_count), metrics=metrics, error=None)
+    except Exception as e:  # a broken policy must not stop the benchmark: record it and go on
+        status = "time_limit" if type(e).__name__ == "EpisodeTimeout" else "failed"
+        record.update(status=status, steps=None, metrics=None,
+                      error="".join(traceback.format_exception(type(e), e, e.__traceback__)))
+    record["wall_time"] = time.perf_counter() - start
+    return record
+
+
+def policy_fingerprint(spec: str) -> str | None:
+    """SHA-256 of a checkpoint file (so results name the exact weights), None for named policies."""
+    path = Path(spec)
+    if ":" in spec or not path.is_file():
+        return None
+    return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+
+
+def check_policies(specs: list[str]) -> None:
+    """Load every policy once before anything is written, so a bad name or checkpoint fails up front."""
+    from ..policies import load_policy
+
+    if not specs:
+        raise ValueError("policies: expected at least one policy")
+    if len(set(specs)) != len(specs):
+        raise ValueError(f"policies: {specs} lists a policy twice")
+    for spec in specs:
+        try:
+            load_policy(spec)
+        except ValueError:
+            raise
+        except Exception as e:
+            raise ValueError(f"policy {spec!r} could not be loaded: {type(e).__name__}: {e}") from e
+
+
+def read_results(out: str | os.PathLike) -> list[dict]:
+    """The records of ``out/results.jsonl``; a corrupt line raises ValueError naming it.
+
+    The one exception is a final line without its newline: the torn write of a killed run, which
+    is skipped with a warning (``prepare_folder`` sets it aside before a resumed run appends).
+    """
+    path = Path(out) / RESULTS_FILE
+    if not path.exists():
+        return []
+    text = path.read_text(encoding="utf-8")
+    lines = text.split("\n")
+    torn = lines.pop()  # "" when the file ends with a newline
+    if torn:
+        warnings.warn(f"{path}: ignoring a torn last line (an interrupted write): {torn[:80]!r}", stacklevel=2)
+    records = []
+    for number, line in enumerate(lines, 1):
+        if not line.strip():
+            continue
+        try:
+            record = json.loads(line)
+            if not isinstance(record, dict) or not {"episode", "policy", "status", "suite_hash"} <= set(record):
+                raise ValueError("missing the keys episode, policy, status, suite_hash")
+        except ValueError as e:
+            raise ValueError(f"{path}, line {number}: corrupt results line ({e}); fix or remove that line "
+                             "(nothing was changed)") from e
+        records.append(record)
+    return records
+
+
+def read_manifest(out: str | os.PathLike) -> dict | None:
+    path = Path(out) / MANIFEST_FILE
+    if not path.exists():
+        return None
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except ValueError as e:
+        raise ValueError(f"{path}: corrupt suite manifest ({e})") from e
+
+
+def prepare_folder(suite: Suite, out: str | os.PathLike, resume: bool) -> set[tuple[str, str]]:
+    """Check ``out`` belongs to ``suite`` and return the finished (episode, policy) pairs; write the manifest.
+
+    Refuses, without touching anything, a folder of another suite hash, and a folder with results
+    unless ``resume`` is set.
+    """
+    out = Path(out)
+    manifest = read_manifest(out)
+    if manifest is not None and manifest.get("suite_hash") != suite.hash:
+        raise ValueError(f"results folder {str(out)!r} holds suite {manifest.get('suite')!r} (hash "
+                         f"{manifest.get('suite_hash')}), not suite {suite.name!r} (hash {suite.hash}); "
+                         "results of different suites are not comparable: choose another --out")
+    records = read_results(out)
+    foreign = sorted({r["suite_hash"] for r in records} - {suite.hash})
+    if foreign:
+        raise ValueError(f"{out / RESULTS_FILE} holds results of suite hash(es) {foreign}, not {suite.hash}")
+    if records and not resume:
+        raise ValueError(f"results folder {str(out)!r} already holds {len(records)} results: pass --resume to "
+                         "continue it (finished episodes are skipped) or choose another --out")
+    if manifest is None:
+        atomic_write_json(out / MANIFEST_FILE, suite.manifest())
+    _set_aside_torn_line(out / RESULTS_FILE)
+    return {(r["episode"], r["policy"]) for r in records}
+
+
+def _set_aside_torn_line(path: Path) -> None:
+    """Move a torn final line (no newline) to ``results.jsonl.torn`` so appended lines stay whole."""
+    if not path.exists():
+        return
+    data = path.read_bytes()
+    cut = data.rfind(b"\n") + 1
+    if cut == len(data):
+        return
+    append_line(path.with_name(path.name + ".torn"), data[cut:].decode("utf-8", "replace"))
+    with open(path, "r+b") as f:
+        f.truncate(cut)
+        f.flush()
+        os.fsync(f.fileno())
+
+
+def run_suite(suite: Suite, policies: list[str], out: str | os.PathLike, *, workers: int = 1,
+              backend: str = "process", resume: bool = False, time_limit: float | None = None,
+              progress: bool = True) -> list[dict]:
+    """Play every (episode, policy) of ``suite`` not yet in ``out`` and append its record; return all records.
+
+    ``workers=1`` with the process backend plays in this process; more use a spawn-context process
+    pool. ``backend="ray"`` submits the same ``play`` calls as Ray tasks (``ray.init()`` starts a
+    local cluster unless one is running). Metrics do not depend on the backend or the order.
+    """
+    if backend not in BACKENDS:
+        raise ValueError(f"backend={backend!r}: expected one of {list(BACKENDS)}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"workers={workers!r}: expected an integer >= 1")
+    if time_limit is not None and not (isinstance(time_limit, (int, float)) and time_limit > 0
+                                       and math.isfinite(time_limit)):
+        raise ValueError(f"time_limit={time_limit!r}: expected a positive number of seconds or None")
+    check_policies(policies)
+    done = prepare_folder(suite, out, resume)
+    fingerprints = {p: policy_fingerprint(p) for p in policies}
+    todo = [(e, p) for p in policies for e in suite.episodes if (e.key, p) not in done]
+    results_path = Path(out) / RESULTS_FILE
+
+    def record(rec: dict) -> None:
+        rec.update(suite=suite.name, suite_hash=suite.hash, policy_sha256=fingerprints[rec["policy"]])
+        append_line(results_path, json.dumps(rec, sort_keys=True, allow_nan=True))
+
+    calls = [(e.to_dict(), p, time_limit) for e, p in todo]
+    from tqdm import tqdm
+
+    with tqdm(total=len(calls), desc=f"suite {suite.name} [{suite.hash}]", unit="episode",
+              disable=not progress) as bar:
+        failed = 0
+        for rec in _execute(calls, workers, backend):
+            record(rec)
+            failed += rec["status"] != "ok"
+            bar.update(1)
+            bar.set_postfix(failed=failed, refresh=False)
+    return read_results(out)
+
+
+def _execute(calls: list[tuple], workers: int, backend: str):
+    """Yield ``play(*call)`` for every call, in completion order."""
+    if not calls:
+        return
+    if backend == "ray":
+        yield from _execute_ray(calls, workers)
+    elif workers == 1:
+        for call in calls:
+            yield play(*call)
+    else:
+        with ProcessPoolExecutor(max_workers=min(workers, len(calls)), mp_context=get_context("spawn")) as pool:
+            futures = [pool.submit(play, *call) for call in calls]
+            for future in as_completed(futures):
+                yield future.result()
+
+
+def _execute_ray(calls: list[tuple], workers: int):
+    try:
+        import ray
+    except ImportError as e:
+        raise ValueError("backend 'ray' needs Ray: pip install 'uavform[ray]'") from e
+    if not ray.is_initialized():
+        ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+    remote_play = ray.remote(num_cpus=1)(play)
+    pending = [remote_play.remote(*call) for call in calls]
+    while pending:
+        ready, pending = ray.wait(pending, num_returns=1)
+        yield ray.get(ready[0])
