@@ -1,0 +1,266 @@
+"""The fusion expert (spec (g)) in short closed-loop episodes on small hand-built scenarios.
+
+Episodes are the slow part of the suite, so every scenario here is a few metres across and every
+episode ends within a few hundred steps.
+"""
+
+import numpy as np
+import pytest
+from gymnasium import spaces
+
+from baselines.expert import WEIGHT_NAMES, ExpertConfig, FusionExpert, StandardDWA
+from uavform_env import EnvConfig, parallel_env
+from uavform_env.scenarios import Mission, Scenario
+from uavform_env.world import Box
+
+HEIGHTMAP_PRIOR = EnvConfig().replace(episode=EnvConfig().episode.replace(prior_map="heightmap"))
+
+
+def scenario(obstacles=(), start=(4.0, 10.0, 3.0), goal=(16.0, 10.0, 3.0), hi=(30.0, 20.0, 12.0), n_uavs=3,
+             formation="triangle", heading=0.0):
+    return Scenario(name="expert-test", version=1, seed=None, bounds_lo=(0.0, 0.0, 0.0), bounds_hi=hi,
+                    resolution=0.2, obstacles=tuple(obstacles),
+                    mission=Mission(start=start, goal=goal, start_heading=heading, formation=formation, spacing=2.0,
+                                    n_uavs=n_uavs))
+
+
+def wall_across(x, y_hi, z_ranges):
+    """A 0.4 m thick wall through the whole world width, solid over each (z_lo, z_hi) range."""
+    return [Box((x, -1.0, lo), (x + 0.4, y_hi + 1.0, hi)) for lo, hi in z_ranges]
+
+
+def fly(policy, scn, steps, config=None, seed=0):
+    """Fly one episode; returns the env, the last infos and the per-step leader diagnostics and states."""
+    penv = parallel_env(scenario=scn, max_cycles=steps, config=config)
+    obs, infos = penv.reset(seed=seed)
+    policy.reset(penv, seed=seed)
+    diagnostics, states = [], []
+    while penv.agents:
+        obs, _, _, _, infos = penv.step(policy.act(obs, penv))
+        diagnostics.append(dict(policy.diagnostics.get("uav_0", {})))
+        states.append(penv.unwrapped.states.copy())
+    return penv, infos, diagnostics, np.array(states)
+
+
+# ----------------------------------------------------------------------------- flying
+
+
+def test_open_field_mission_succeeds_without_collision():
+    penv, infos, _, states = fly(FusionExpert(), scenario(), 400)
+    assert infos["uav_0"]["success"] == 1 and infos["uav_0"]["step"] < 400
+    assert not penv.unwrapped.crashed.any()
+    assert min(np.min(h) for h in penv.unwrapped.history["clearance"]) > 0.0
+    assert np.abs(states[:, :, 2] - 3.0).max() < 0.5           # nothing to avoid: the formation stays level
+
+
+class OnboardOnly:
+    """An env stand-in that lets a policy reach only what a UAV has on board (plus the public spaces).
+
+    Any other attribute (world, states, goal, scenario, maps, ...) raises, so a policy that peeks at
+    ground truth fails the test instead of silently cheating.
+    """
+
+    ALLOWED = ("onboard", "agents", "possible_agents", "action_space", "config")
+
+    def __init__(self, env):
+        object.__setattr__(self, "_env", env.unwrapped)
+
+    @property
+    def unwrapped(self):
+        return self
+
+    def __getattr__(self, name):
+        if name in OnboardOnly.ALLOWED:
+            return getattr(self._env, name)
+        raise AssertionError(f"the policy read env.{name}: ground truth is off limits, use onboard()")
+
+
+def test_expert_reads_only_the_onboard_view():
+    scn = scenario(obstacles=wall_across(10.0, 20.0, [(0.0, 4.0), (6.5, 12.0)]), n_uavs=2, formation="column")
+    penv = parallel_env(scenario=scn, max_cycles=60)
+    twin = parallel_env(scenario=scn, max_cycles=60)
+    obs, _ = penv.reset(seed=1)
+    twin_obs, _ = twin.reset(seed=1)
+    guarded, reference = FusionExpert(), FusionExpert()
+    view = OnboardOnly(penv)
+    guarded.reset(view, seed=1)
+    reference.reset(twin, seed=1)
+    while penv.agents:
+        acts = guarded.act(obs, view)
+        expected = reference.act(twin_obs, twin)
+        assert {a: v.tobytes() for a, v in acts.items()} == {a: v.tobytes() for a, v in expected.items()}
+        obs, *_ = penv.step(acts)
+        twin_obs, *_ = twin.step(expected)
+
+
+def test_default_weights_are_bit_identical_to_no_weights():
+    scn = scenario(obstacles=wall_across(10.0, 20.0, [(0.0, 4.0), (6.5, 12.0)]))
+    runs = []
+    for weighted in (False, True):
+        penv = parallel_env(scenario=scn, max_cycles=80)
+        obs, _ = penv.reset(seed=2)
+        expert = FusionExpert()
+        expert.reset(penv, seed=2)
+        w = ExpertConfig().weights()
+        trace = []
+        while penv.agents:
+            acts = expert.act(obs, penv, weights={a: w for a in penv.agents} if weighted else None)
+            trace.append(b"".join(acts[a].tobytes() for a in sorted(acts)))
+            obs, *_ = penv.step(acts)
+        runs.append(trace)
+    assert len(runs[0]) == 80 and runs[0] == runs[1]
+
+
+def test_weights_change_the_actions():
+    """The override is live: facing north with the goal east, only the heading term asks for a turn."""
+    penv = parallel_env(scenario=scenario(heading=np.pi / 2), max_cycles=5)
+    obs, _ = penv.reset(seed=0)
+    plain, reweighted = FusionExpert(), FusionExpert()
+    plain.reset(penv, seed=0)
+    reweighted.reset(penv, seed=0)
+    w = ExpertConfig().weights()
+    w[WEIGHT_NAMES.index("alpha0")] = 0.0
+    a = plain.act(obs, penv)
+    b = reweighted.act(obs, penv, weights={"uav_0": w})
+    assert a["uav_1"].tobytes() == b["uav_1"].tobytes()      # only uav_0 was given weights
+    assert a["uav_0"][1] < 0.0 and b["uav_0"][1] == 0.0      # turn right toward the goal / keep straight
+
+
+# ----------------------------------------------------------------------------- bad input
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(e0=1.0, e1=1.0), "ExpertConfig.e1"),
+    (dict(e0=2.0, e1=1.5), "ExpertConfig.e1"),
+    (dict(astar_layer="voxels"), "ExpertConfig.astar_layer"),
+    (dict(k_f=-0.5), "ExpertConfig.k_f"),
+    (dict(leader_speed_cap=0.0), "ExpertConfig.leader_speed_cap"),
+    (dict(debounce=0), "ExpertConfig.debounce"),
+    (dict(dwa="IDWA"), "ExpertConfig.dwa"),
+])
+def test_bad_config_names_the_field(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        ExpertConfig(**kwargs)
+
+
+@pytest.mark.parametrize("weights", [
+    [-0.1, 0.2, 0.1, 0.05, 5.0, 2.0, 2.0],                   # a negative weight
+    [0.1, 0.2, 0.1, 0.05, 5.0, 2.0],                         # one short
+    [0.1, 0.2, 0.1, 0.05, 5.0, 2.0, np.nan],                 # not finite
+    [[0.1] * 7],                                             # wrong shape
+])
+def test_bad_weight_vectors_are_rejected(weights):
+    with pytest.raises(ValueError, match="weights: expected 7 finite values >= 0"):
+        ExpertConfig().with_weights(weights)
+    penv = parallel_env(scenario=scenario(), max_cycles=5)
+    obs, _ = penv.reset(seed=0)
+    expert = FusionExpert()
+    expert.reset(penv, seed=0)
+    with pytest.raises(ValueError, match="weights"):
+        expert.act(obs, penv, weights={"uav_0": weights})
+
+
+def test_weight_names_follow_the_config():
+    cfg = ExpertConfig()
+    w = cfg.weights()
+    assert w.tolist() == [cfg.dwa.alpha0, cfg.dwa.beta, cfg.dwa.gamma, cfg.dwa.eps0, cfg.vfh.k1, cfg.vfh.k2, cfg.vfh.k3]
+    w2 = np.arange(1.0, 8.0)
+    assert cfg.with_weights(w2).weights().tolist() == w2.tolist()
+
+
+class NoOnboard:
+    possible_agents = ["uav_0"]
+
+    def action_space(self, agent):
+        return spaces.Box(-1.0, 1.0, (3,), np.float32)
+
+
+class WrongActions:
+    """An env that has an onboard view but flies two-axis actions."""
+
+    possible_agents = ["uav_0"]
+
+    def onboard(self, agent):
+        raise AssertionError("not reached: the action space is checked first")
+
+    def action_space(self, agent):
+        return spaces.Box(-1.0, 1.0, (2,), np.float32)
+
+
+@pytest.mark.parametrize("env, match", [(NoOnboard(), "has no onboard"), (WrongActions(), "expected Box\\(-1, 1, \\(3,\\)\\)")])
+def test_unflyable_env_is_rejected(env, match):
+    with pytest.raises(ValueError, match=match):
+        FusionExpert().reset(env, seed=0)
+
+
+def test_act_on_another_env_is_rejected():
+    penv = parallel_env(scenario=scenario(), max_cycles=5)
+    other = parallel_env(scenario=scenario(), max_cycles=5)
+    obs, _ = penv.reset(seed=0)
+    other.reset(seed=0)
+    expert = FusionExpert()
+    expert.reset(penv, seed=0)
+    with pytest.raises(ValueError, match="not reset"):
+        expert.act(obs, other)
+
+
+# ----------------------------------------------------------------------------- unreachable goal
+
+# A wall through the full width and height of a narrow world (top 12 m > z_max = 10 m): with the world's
+# side bounds it encloses the goal. The leader starts 4 m in front of it.
+def enclosed_goal():
+    return scenario(obstacles=wall_across(10.0, 6.0, [(0.0, 12.0)]), start=(6.0, 3.0, 3.0), goal=(14.0, 3.0, 3.0),
+                    hi=(20.0, 6.0, 12.0), n_uavs=1, formation="column")
+
+
+def test_unreachable_goal_on_the_prior_map_fails_at_reset():
+    penv = parallel_env(scenario=enclosed_goal(), max_cycles=5, config=HEIGHTMAP_PRIOR)
+    penv.reset(seed=0)
+    with pytest.raises(ValueError, match="infeasible mission"):
+        FusionExpert().reset(penv, seed=0)
+
+
+def test_goal_behind_a_low_wall_is_feasible_on_the_prior_map():
+    scn = scenario(obstacles=wall_across(10.0, 6.0, [(0.0, 5.0)]), start=(6.0, 3.0, 3.0), goal=(14.0, 3.0, 3.0),
+                   hi=(20.0, 6.0, 12.0), n_uavs=1, formation="column")
+    penv = parallel_env(scenario=scn, max_cycles=5, config=HEIGHTMAP_PRIOR)
+    penv.reset(seed=0)
+    FusionExpert().reset(penv, seed=0)                       # 5 m top: the 'passable' raster flies over it
+
+
+def test_leader_discovers_the_enclosure_and_holds():
+    """Without a prior the leader climbs until its own map shows the wall closed up to z_max, then holds."""
+    penv, infos, diagnostics, states = fly(FusionExpert(), enclosed_goal(), 450)
+    assert not penv.unwrapped.crashed.any() and infos["uav_0"]["success"] == 0
+    unreachable = [d.get("unreachable", False) for d in diagnostics]
+    first = unreachable.index(True)
+    assert all(unreachable[first:]) and all(d["stuck"] for d in diagnostics[first:])
+    assert max(states[:first, 0, 2]) > 6.0                   # it had to look over the 10 m band to be sure
+    assert len(unreachable) - first >= 30
+    assert states[-1, 0, 4] == 0.0                           # braked to a standstill ...
+    settled = states[first + 20:, 0, :2]
+    np.testing.assert_array_equal(settled, np.broadcast_to(settled[0], settled.shape))   # ... and holds there
+    assert states[-1, 0, 0] < 10.0
+
+
+# ----------------------------------------------------------------------------- wall gap (3D vs 2D)
+
+
+def gap_wall():
+    """A single UAV, a full-height wall 6 m ahead with a 2.5 m gap from 4 m up (z_ref = 3 m is blocked)."""
+    return scenario(obstacles=wall_across(10.0, 8.0, [(0.0, 4.0), (6.5, 12.0)]), start=(4.0, 4.0, 3.0),
+                    goal=(16.0, 4.0, 3.0), hi=(20.0, 8.0, 12.0), n_uavs=1, formation="column")
+
+
+def test_expert_passes_the_wall_gap_by_changing_altitude():
+    penv, infos, _, states = fly(FusionExpert(), gap_wall(), 450)
+    assert infos["uav_0"]["success"] == 1 and not penv.unwrapped.crashed.any()
+    at_wall = np.abs(states[:, 0, 0] - 10.2) < 0.5
+    assert at_wall.any() and np.all((states[at_wall, 0, 2] > 4.0) & (states[at_wall, 0, 2] < 6.5))
+
+
+def test_standard_dwa_does_not_pass_the_wall_gap():
+    penv, infos, diagnostics, states = fly(StandardDWA(), gap_wall(), 300)
+    assert infos["uav_0"]["success"] == 0 and not penv.unwrapped.crashed.any()
+    assert np.all(states[:, 0, 0] < 10.0) and np.all(states[:, 0, 2] == 3.0)
+    assert diagnostics[-1]["stuck"]
