@@ -341,7 +341,8 @@ def test_cli_show_and_errors(tiny, serial_run, capsys):
     out, records = serial_run
     assert main(["leaderboard", "--show", str(out)]) == 0
     shown = capsys.readouterr().out
-    assert f"hash `{tiny.hash}`" in shown and "| 1 | `hover`" in shown or "| 1 | `apf`" in shown
+    assert f"hash `{tiny.hash}`" in shown
+    assert "| 1 | `hover` | 2 | 0 |" in shown and f"| 3 | `{EXPLODING}` | 2 | 2 |" in shown
     assert main(["leaderboard", "--suite", "v9", "--policy", "hover", "--out", str(out)]) == 2
     assert "unknown suite 'v9'" in capsys.readouterr().err
     assert main(["leaderboard", "--show", str(out / "nowhere")]) == 2
