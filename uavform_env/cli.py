@@ -96,8 +96,12 @@ def _leaderboard(args) -> int:
         raise ValueError("give at least one --policy (or --show RESULTS_DIR)")
     suite = load_suite(args.suite)
     print(f"suite {suite.name}: {len(suite.episodes)} episodes, hash {suite.hash}", flush=True)
-    records = run_suite(suite, args.policy, args.out, workers=args.workers, backend=args.backend, resume=args.resume,
-                        time_limit=args.time_limit, progress=not args.quiet)
+    try:
+        records = run_suite(suite, args.policy, args.out, workers=args.workers, backend=args.backend,
+                            resume=args.resume, time_limit=args.time_limit, progress=not args.quiet)
+    except KeyboardInterrupt:
+        print(f"interrupted: finished episodes are in {args.out}; add --resume to continue", file=sys.stderr)
+        return 130
     print(to_markdown(write_tables(suite, records, args.out)), end="")
     print(f"wrote {args.out}/leaderboard.md, .csv, .json (marl-eval layout) and .png")
     return 0

@@ -207,10 +207,13 @@ def _execute(calls: list[tuple], workers: int, backend: str):
         for call in calls:
             yield play(*call)
     else:
-        with ProcessPoolExecutor(max_workers=min(workers, len(calls)), mp_context=get_context("spawn")) as pool:
+        pool = ProcessPoolExecutor(max_workers=min(workers, len(calls)), mp_context=get_context("spawn"))
+        try:
             futures = [pool.submit(play, *call) for call in calls]
             for future in as_completed(futures):
                 yield future.result()
+        finally:  # on Ctrl-C or an error, drop the episodes not started instead of playing them unrecorded
+            pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _execute_ray(calls: list[tuple], workers: int):
@@ -222,6 +225,10 @@ def _execute_ray(calls: list[tuple], workers: int):
         ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
     remote_play = ray.remote(num_cpus=1)(play)
     pending = [remote_play.remote(*call) for call in calls]
-    while pending:
-        ready, pending = ray.wait(pending, num_returns=1)
-        yield ray.get(ready[0])
+    try:
+        while pending:
+            ready, pending = ray.wait(pending, num_returns=1)
+            yield ray.get(ready[0])
+    finally:
+        for ref in pending:
+            ray.cancel(ref)
