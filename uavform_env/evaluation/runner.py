@@ -36,7 +36,7 @@ def play(episode: dict, policy_spec: str, time_limit: float | None) -> dict:
     """
     from ..formation_v0 import parallel_env
     from ..policies import load_policy
-    from ..rollout import run_episode
+    from ..rollout import EpisodeTimeout, run_episode
 
     ep = Episode(**episode)
     record = {"episode": ep.key, "policy": policy_spec, **ep.to_dict()}
@@ -46,7 +46,7 @@ def play(episode: dict, policy_spec: str, time_limit: float | None) -> dict:
         metrics = run_episode(penv, load_policy(policy_spec), ep.seed, time_limit=time_limit)
         record.update(status="ok", steps=int(penv.unwrapped.step_count), metrics=metrics, error=None)
     except Exception as e:  # a broken policy must not stop the benchmark: record it and go on
-        status = "time_limit" if type(e).__name__ == "EpisodeTimeout" else "failed"
+        status = "time_limit" if isinstance(e, EpisodeTimeout) else "failed"
         record.update(status=status, steps=None, metrics=None,
                       error="".join(traceback.format_exception(type(e), e, e.__traceback__)))
     record["wall_time"] = time.perf_counter() - start

@@ -122,9 +122,10 @@ def _parse(doc: dict, where: str) -> Suite:
         if "@" not in str(entry["scenario"]):
             raise ValueError(f"{here}: scenario {entry['scenario']!r} must pin a generator version ('name@k'), "
                              "so the suite keeps meaning the same worlds")
-        for key in ("n_uavs", "seed", "max_cycles"):
-            if isinstance(entry[key], bool) or not isinstance(entry[key], int) or entry[key] < (0 if key == "seed" else 1):
-                raise ValueError(f"{here}: {key}={entry[key]!r}: expected a positive integer")
+        for key, lowest in (("n_uavs", 1), ("seed", 0), ("max_cycles", 1)):
+            value = entry[key]
+            if isinstance(value, bool) or not isinstance(value, int) or value < lowest:
+                raise ValueError(f"{here}: {key}={value!r}: expected an integer >= {lowest}")
         episode = Episode(**entry)
         try:
             scn = make_scenario(episode.scenario, episode.seed, n_uavs=episode.n_uavs, formation=episode.formation,

@@ -117,8 +117,8 @@ def to_markdown(summary: dict) -> str:
         cells = [str(r["rank"]), f"`{r['policy']}`", str(r["episodes"]), str(r["failed"]),
                  *(_cell(r["metrics"][m]) for m in ranked)]
         lines.append("| " + " | ".join(cells) + " |")
-    lines += ["", "## All metrics", "", "| metric | " + " | ".join(f"`{r['policy']}`" for r in summary["policies"]) + " |",
-              "|" + "---|" * (len(summary["policies"]) + 1)]
+    names = " | ".join(f"`{r['policy']}`" for r in summary["policies"])
+    lines += ["", "## All metrics", "", f"| metric | {names} |", "|" + "---|" * (len(summary["policies"]) + 1)]
     for m in METRIC_NAMES:
         lines.append(f"| {_label(m)} | " + " | ".join(_cell(r["metrics"][m]) for r in summary["policies"]) + " |")
     return "\n".join(lines) + "\n"
