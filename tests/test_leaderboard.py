@@ -18,6 +18,7 @@ from uavform_env.cli import main
 from uavform_env.evaluation import (WALL_CLOCK_METRICS, bootstrap_ci, list_suites, load_suite, read_results,
                                     run_suite, summarize, write_tables)
 from uavform_env.evaluation.runner import RESULTS_FILE
+from uavform_env.evaluation.suites import Episode, Suite
 from uavform_env.evaluation.table import to_marl_eval
 from uavform_env.metrics import METRIC_NAMES
 from uavform_env.scenarios import list_scenarios
@@ -202,6 +203,16 @@ def test_ranking_is_success_then_safety_formation_efficiency(tiny):
     assert crashy["metrics"]["flight_time"]["n"] == 1
     with pytest.raises(ValueError, match="two results for episode"):
         summarize(tiny, records + [r(0, "fast")])
+
+
+def test_table_ignores_the_order_results_arrive_in():
+    """Pools and resumes append in completion order; the bootstrap must still see suite order."""
+    suite = Suite("synthetic", "", tuple(Episode("forest@1", 2, "wedge", seed, 10) for seed in range(12)))
+    rng = np.random.default_rng(1)
+    records = [{"episode": e.key, "policy": "p", "seed": e.seed, "suite_hash": suite.hash, "status": "ok",
+                "steps": 10, "metrics": {m: float(v) for m, v in zip(METRIC_NAMES, rng.normal(size=len(METRIC_NAMES)))}}
+               for e in suite.episodes]
+    assert summarize(suite, records) == summarize(suite, records[::-1])
 
 
 def test_marl_eval_layout(tiny, serial_run):
