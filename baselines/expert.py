@@ -39,15 +39,22 @@ class ExpertConfig(_Config):
     astar_layer        "passable": a raster cell blocks only where no free vertical gap is left in the
                        altitude band (the fusion controller may climb); "band": any obstacle at the
                        formation altitude blocks (planar controllers) [X]
-    dwa_map_level      octree level whose voxels form DWA's obstacle set (1 = 0.4 m voxels at 0.2 m) [X]
+    dwa_map_level      octree level whose voxels form DWA's obstacle set (0 = the 0.2 m leaves; a coarser
+                       level means fewer points but a pyramid refresh every step) [X]
     replan_check_period  how often (s) the leader rebuilds its raster and tests the (d5) triggers [X]
+    leader_stopped_speed  below this leader speed a follower's speed reference uses its whole slot error, not
+                       the along-track part of (g2), so it closes on a parked slot from the side too [X]
+    e0, e1, min_leader_scale  leader formation feedback of (g2): its speed cap scales from 1 at a mean follower
+                       error e0 down to min_leader_scale at e1 [D: the spec's 1 m, 3 m, 0.3 held a forest
+                       formation, which is always stretched, at 0.24 m/s]
     vfh_neighbour_radius  neighbours closer than this become 3D VFH+ pseudo-voxels (g6); farther ones are
                        left to DWA, so the formation's own members do not close the level gaps [X]
     level_window       LEVEL also when an open level cell lies within this angle of the target azimuth:
                        DWA detours horizontally rather than climbing over what it can fly around [X]
     geofence_spacing   the world's x/y bounds enter DWA as walls of points this far apart [X]
-    rejoin_distance    a follower farther than this from its slot rejoins along its own A* path (the same
-                       planner the leader runs), heading for the path's lookahead point [X]
+    rejoin_distance    a follower farther than this from its slot rejoins by following the leader's broadcast
+                       trail (points ``trail_spacing`` apart, progress searched ``trail_window`` points ahead),
+                       heading for the trail's lookahead point, in single file through clutter [X]
     arrive_radius      the leader stops and holds once this close to the goal (the DWA stopping rule of (b10))
     gap_lookahead, gap_depth, gap_margin, k_gap  the known-gap altitude rule of the vertical decision: when
                        no open level way lies within ``level_window`` of the target and the own map shows a
@@ -64,14 +71,16 @@ class ExpertConfig(_Config):
     neighbour_prediction: bool = True
     shape_switching: bool = True
     astar_layer: str = "passable"
-    dwa_map_level: int = 1
+    dwa_map_level: int = 0
     replan_check_period: float = 0.5
     k_f: float = 0.5
+    leader_stopped_speed: float = 0.05
     k_h: float = 1.0
     k_z: float = 0.5
     leader_speed_cap: float = 0.8
-    e0: float = 1.0
-    e1: float = 3.0
+    e0: float = 1.5
+    e1: float = 5.0
+    min_leader_scale: float = 0.5
     debounce: int = 3
     T_stuck: float = 5.0
     climb_lookahead: float = 3.0
@@ -81,6 +90,8 @@ class ExpertConfig(_Config):
     level_window: float = math.radians(30.0)
     geofence_spacing: float = 0.4
     rejoin_distance: float = 4.0
+    trail_spacing: float = 0.25
+    trail_window: int = 400
     arrive_radius: float = 0.3
     gap_lookahead: float = 4.0
     gap_depth: float = 1.0
@@ -99,12 +110,14 @@ class ExpertConfig(_Config):
         _check_choice(o, "astar_layer", self.astar_layer, ASTAR_LAYERS)
         _check_int(o, "dwa_map_level", self.dwa_map_level, 0, 4)
         _check_int(o, "debounce", self.debounce, 1, 100)
+        _check_int(o, "trail_window", self.trail_window, 1)
         for name in ("replan_check_period", "k_f", "k_h", "k_z", "T_stuck", "climb_lookahead", "column_hold",
-                     "vfh_neighbour_radius", "rejoin_distance", "arrive_radius", "gap_lookahead", "gap_depth", "gap_margin",
-                     "k_gap", "gap_speed"):
+                     "vfh_neighbour_radius", "rejoin_distance", "trail_spacing", "arrive_radius", "gap_lookahead", "gap_depth", "gap_margin",
+                     "k_gap", "gap_speed", "leader_stopped_speed"):
             _check_range(o, name, getattr(self, name), 0.0, None)
         _check_range(o, "leader_speed_cap", self.leader_speed_cap, 0.0, 1.0, lo_open=True)
         _check_range(o, "yield_factor", self.yield_factor, 0.0, 1.0)
+        _check_range(o, "min_leader_scale", self.min_leader_scale, 0.0, 1.0)
         _check_range(o, "level_window", self.level_window, 0.0, math.pi)
         _check_range(o, "geofence_spacing", self.geofence_spacing, 0.05, None)
         _check_range(o, "e0", self.e0, 0.0, None)
@@ -146,6 +159,8 @@ class _UAVMemory:
     last_plan_time: float = -1e9
     last_check_time: float = -1e9
     replans: int = 0
+    trail: list = field(default_factory=list)
+    trail_progress: int = 0
 
 
 class FusionExpert(OnboardPolicy):
@@ -290,7 +305,7 @@ class FusionExpert(OnboardPolicy):
         scale = 1.0
         if errors.size:
             mean_err = float(errors.mean())
-            scale = float(np.clip(1.0 - (mean_err - cfg.e0) / (cfg.e1 - cfg.e0), 0.3, 1.0))
+            scale = float(np.clip(1.0 - (mean_err - cfg.e0) / (cfg.e1 - cfg.e0), cfg.min_leader_scale, 1.0))
         return goal, lookahead, cfg.leader_speed_cap * lim.v_max * scale, None
 
     def _guidance(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float, goal_xy: np.ndarray):
@@ -337,20 +352,16 @@ class FusionExpert(OnboardPolicy):
         lim = view.limits
         h_b = lim.r_uav + lim.r_safe
         occ_map = view.occupancy
-        logodds = occ_map.logodds
-        occupied = logodds > 0.0                                          # NaN (unknown) compares False: free
         res = occ_map.resolution
-        z_centres = occ_map.origin[2] + (np.arange(logodds.shape[2]) + 0.5) * res
+        extent = np.asarray(occ_map.shape) * res
+        centres, _ = occ_map.occupied_in_sphere(occ_map.origin + extent / 2, float(np.linalg.norm(extent)) / 2 + res)
         if cfg.astar_layer == "band":
-            band = np.abs(z_centres - view.z_ref) <= h_b + res / 2
-            column = occupied[:, :, band].any(axis=2)
+            columns = centres[np.abs(centres[:, 2] - view.z_ref) <= h_b + res / 2, :2]
         else:
-            column = _no_vertical_gap(occupied, z_centres, lim.z_min, lim.z_max, 2 * h_b + res)
+            columns = _columns_without_gap(centres, res, lim.z_min, lim.z_max, 2 * h_b + res)
         blocked = np.zeros(self.raster.shape, bool)
-        ii, jj = np.nonzero(column)
-        if ii.size:
-            xy = occ_map.origin[:2] + (np.column_stack([ii, jj]) + 0.5) * res
-            cells = np.floor((xy - np.asarray(self.raster.origin)) / self.raster.res).astype(np.int64)
+        if len(columns):
+            cells = np.floor((columns - np.asarray(self.raster.origin)) / self.raster.res).astype(np.int64)
             ok = np.all((cells >= 0) & (cells < np.asarray(self.raster.shape)), axis=1)
             blocked[cells[ok, 0], cells[ok, 1]] = True
         prior = view.prior
@@ -382,14 +393,20 @@ class FusionExpert(OnboardPolicy):
         lookahead = view.state[:2] + a_j
         cl, sl = heading_l
         slot_now = lead[:2] + np.array([cl * offset[0] - sl * offset[1], sl * offset[0] + cl * offset[1]])
-        if np.linalg.norm(slot_now - view.state[:2]) > cfg.rejoin_distance:
-            # Far from the slot: rejoin along an A* path on the own map, heading for its lookahead point.
-            guide = self._guidance(view, mem, cfg, t, slot_now)
-            if guide is not None:
+        trail = mem.trail
+        if not trail or np.hypot(*(lead[:2] - trail[-1])) >= cfg.trail_spacing:
+            trail.append(lead[:2].copy())
+        if np.linalg.norm(slot_now - view.state[:2]) > cfg.rejoin_distance and len(trail) > 1:
+            # Far from the slot: rejoin along the leader's broadcast trail, which the leader has flown.
+            path = GlobalPath(np.asarray(trail), window=cfg.trail_window)
+            path.progress = min(mem.trail_progress, len(trail) - 1)
+            guide = path.lookahead(view.state[:2], cfg.astar.lookahead)
+            mem.trail_progress = path.progress
+            if path.length - path._arc[path.progress] > cfg.astar.lookahead:   # not yet at the trail's end
                 return guide, guide, None, None
-        else:
-            mem.replans, mem.path = 0, None
         e_par = float((slot_now - view.state[:2]) @ heading_l)
+        if lead[V] < cfg.leader_stopped_speed:
+            e_par = float(np.linalg.norm(slot_now - view.state[:2]))   # closing on a parked slot, any side
         v_ref = float(np.clip(lead[V] + cfg.k_f * e_par, 0.0, lim.v_max))
         return goal, lookahead, None, v_ref
 
@@ -454,24 +471,31 @@ def _raster_for(view, res: float) -> Raster:
     return Raster(tuple(origin), res, tuple(int(v) for v in shape))
 
 
-def _no_vertical_gap(occupied: np.ndarray, z_centres: np.ndarray, z_min: float, z_max: float, gap: float) -> np.ndarray:
-    """Columns with no free run of height >= ``gap`` inside [z_min, z_max] (unknown counts as free)."""
-    band = (z_centres >= z_min) & (z_centres <= z_max)
-    sub = occupied[:, :, band]
-    out = np.zeros(occupied.shape[:2], bool)
-    cols = sub.any(axis=2)
-    if not cols.any():
-        return out
-    dz = z_centres[1] - z_centres[0] if len(z_centres) > 1 else 1.0
-    g = max(1, int(math.ceil(gap / dz)))
-    c = sub[cols].astype(np.int32)
-    if c.shape[1] < g:
-        out[cols] = True
-        return out
-    cs = np.concatenate([np.zeros((c.shape[0], 1), np.int32), np.cumsum(c, axis=1)], axis=1)
-    free_run = (cs[:, g:] - cs[:, :-g]) == 0
-    out[cols] = ~free_run.any(axis=1)
-    return out
+def _columns_without_gap(centres: np.ndarray, res: float, z_min: float, z_max: float, gap: float) -> np.ndarray:
+    """x, y of the map columns whose occupied voxels leave no free run of height >= ``gap`` in [z_min, z_max].
+
+    Works on the occupied-voxel list (unknown counts as free), sorted by column and height, so it
+    costs O(occupied voxels) instead of a pass over the dense grid.
+    """
+    inside = (centres[:, 2] >= z_min - res) & (centres[:, 2] <= z_max + res)
+    c = centres[inside]
+    if len(c) == 0:
+        return np.empty((0, 2))
+    key = np.round(c[:, :2] / res).astype(np.int64)
+    order = np.lexsort((c[:, 2], key[:, 1], key[:, 0]))
+    c, key = c[order], key[order]
+    new_col = np.ones(len(c), bool)
+    new_col[1:] = np.any(key[1:] != key[:-1], axis=1)
+    starts = np.flatnonzero(new_col)
+    ends = np.append(starts[1:], len(c)) - 1
+    bottom = c[:, 2] - res / 2
+    top = c[:, 2] + res / 2
+    gaps = np.empty(len(c))                      # free run below each voxel, down to the previous one or z_min
+    gaps[1:] = bottom[1:] - top[:-1]
+    gaps[starts] = bottom[starts] - z_min
+    best = np.maximum.reduceat(gaps, starts)
+    best = np.maximum(best, z_max - top[ends])   # the run above the highest voxel
+    return c[starts[best < gap], :2]
 
 
 def _level_way(r, cfg: ExpertConfig, target_dir: np.ndarray) -> bool:

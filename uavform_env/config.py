@@ -236,7 +236,7 @@ class ObservationConfig(_Config):
 class EpisodeConfig(_Config):
     """Episode rules: length, goal radius, crash handling, prior knowledge and disturbances."""
 
-    max_cycles: int = 1500
+    max_cycles: int = 3000
     r_goal: float = 0.5
     remove_crashed: bool = False
     prior_map: str = "none"
