@@ -30,6 +30,12 @@ def _check_range(owner: str, name: str, value: Any, lo: float | None = None, hi:
         raise ValueError(f"{owner}.{name}={value!r} is out of range; allowed {left}{lo_s}, {hi_s}{right}")
 
 
+def _check_order(owner: str, lo_name: str, lo: float, hi_name: str, hi: float) -> None:
+    """Raise a ValueError naming both fields unless lo < hi."""
+    if not lo < hi:
+        raise ValueError(f"{owner}.{lo_name}={lo!r} must be smaller than {owner}.{hi_name}={hi!r}")
+
+
 def _check_int(owner: str, name: str, value: Any, lo: int, hi: int | None = None) -> None:
     if isinstance(value, bool) or not isinstance(value, int):
         raise ValueError(f"{owner}.{name}={value!r}: expected an integer")
@@ -93,7 +99,8 @@ class UAVLimits(_Config):
         o = "UAVLimits"
         _check_range(o, "dt", self.dt, 0.0, 1.0, lo_open=True)
         _check_range(o, "v_min", self.v_min, 0.0, None)
-        _check_range(o, "v_max", self.v_max, self.v_min, 50.0, lo_open=True)
+        _check_range(o, "v_max", self.v_max, 0.0, 50.0, lo_open=True)
+        _check_order(o, "v_min", self.v_min, "v_max", self.v_max)
         _check_range(o, "w_max", self.w_max, 0.0, 2 * math.pi, lo_open=True)
         _check_range(o, "a_max", self.a_max, 0.0, 100.0, lo_open=True)
         _check_range(o, "dw_max", self.dw_max, 0.0, 100.0, lo_open=True)
@@ -103,7 +110,8 @@ class UAVLimits(_Config):
         _check_range(o, "r_uav", self.r_uav, 0.0, 10.0, lo_open=True)
         _check_range(o, "r_safe", self.r_safe, 0.0, 10.0)
         _check_range(o, "z_min", self.z_min, 0.0, None)
-        _check_range(o, "z_max", self.z_max, self.z_min, None, lo_open=True)
+        _check_range(o, "z_max", self.z_max, 0.0, None, lo_open=True)
+        _check_order(o, "z_min", self.z_min, "z_max", self.z_max)
 
     def climb_angle_limit(self, v: float) -> float:
         """e_max(v) = min(gamma_max, atan2(vz_max, max(v, 1e-3))) (spec (a))."""
@@ -134,7 +142,10 @@ class SensorConfig(_Config):
         _check_int(o, "n_azimuth", self.n_azimuth, 1, 3600)
         _check_int(o, "n_elevation", self.n_elevation, 1, 1800)
         _check_range(o, "elevation_min", self.elevation_min, -math.pi / 2, math.pi / 2)
-        _check_range(o, "elevation_max", self.elevation_max, self.elevation_min, math.pi / 2)
+        _check_range(o, "elevation_max", self.elevation_max, -math.pi / 2, math.pi / 2)
+        if self.elevation_max < self.elevation_min:
+            raise ValueError(f"{o}.elevation_min={self.elevation_min!r} must not exceed "
+                             f"{o}.elevation_max={self.elevation_max!r}")
         _check_range(o, "r_max", self.r_max, 0.0, 100.0, lo_open=True)
         _check_range(o, "noise_std", self.noise_std, 0.0, 10.0)
 
@@ -161,7 +172,9 @@ class MapConfig(_Config):
         _check_range(o, "p_miss", self.p_miss, 0.0, 0.5, lo_open=True, hi_open=True)
         _check_range(o, "p_min", self.p_min, 0.0, 0.5, lo_open=True, hi_open=True)
         _check_range(o, "p_max", self.p_max, 0.5, 1.0, lo_open=True, hi_open=True)
-        _check_range(o, "p_occ", self.p_occ, self.p_min, self.p_max, lo_open=True, hi_open=True)
+        _check_range(o, "p_occ", self.p_occ, 0.0, 1.0, lo_open=True, hi_open=True)
+        _check_order(o, "p_min", self.p_min, "p_occ", self.p_occ)
+        _check_order(o, "p_occ", self.p_occ, "p_max", self.p_max)
 
     @staticmethod
     def logodds(p: float) -> float:
