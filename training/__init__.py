@@ -1,1 +1,0 @@
-"""Residual reinforcement learning on the fusion expert's evaluation weights."""
