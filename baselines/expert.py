@@ -55,7 +55,13 @@ class ExpertConfig(_Config):
     rejoin_distance    a follower farther than this from its slot rejoins by following the leader's broadcast
                        trail (points ``trail_spacing`` apart, progress searched ``trail_window`` points ahead),
                        heading for the trail's lookahead point, in single file through clutter [X]
-    arrive_radius      the leader stops and holds once this close to the goal (the DWA stopping rule of (b10))
+    arrive_radius      the leader stops once this close to the goal (horizontally) and holds there for the rest
+                       of the mission (the DWA stopping rule of (b10)); the default DWA's approach speed
+                       profile brakes to rest 0.1 m from the goal (``dwa.r_goal``, inside ``arrive_radius``):
+                       braking to rest at 0.5 m parks the leader on the rim of the env's success sphere,
+                       never inside ``arrive_radius`` [X]
+    stuck_window       the leader also reports ``stuck`` when its horizontal goal distance has not dropped by
+                       ``trail_spacing`` for this long (s): DWA can hold it at rest with admissible samples [X]
     gap_lookahead, gap_depth, gap_margin, k_gap  the known-gap altitude rule of the vertical decision: when
                        no open level way lies within ``level_window`` of the target and the own map shows a
                        blocked level within ``gap_lookahead`` m ahead, fly to the altitude of the known-free
@@ -64,7 +70,8 @@ class ExpertConfig(_Config):
                        and with leaf voxels as DWA obstacles while it passes [X]
     """
 
-    dwa: DWAConfig = field(default_factory=lambda: DWAConfig.ablation("IDWA", approach_speed_profile=True))
+    dwa: DWAConfig = field(default_factory=lambda: DWAConfig.ablation("IDWA", approach_speed_profile=True,
+                                                                                      r_goal=0.1))
     vfh: VFHConfig = field(default_factory=VFHConfig)
     astar: AStarConfig = field(default_factory=lambda: AStarConfig(prune=True))
     use_vfh: bool = True
@@ -93,6 +100,7 @@ class ExpertConfig(_Config):
     trail_spacing: float = 0.25
     trail_window: int = 400
     arrive_radius: float = 0.3
+    stuck_window: float = 10.0
     gap_lookahead: float = 4.0
     gap_depth: float = 1.0
     gap_margin: float = 0.1
@@ -112,7 +120,8 @@ class ExpertConfig(_Config):
         _check_int(o, "debounce", self.debounce, 1, 100)
         _check_int(o, "trail_window", self.trail_window, 1)
         for name in ("replan_check_period", "k_f", "k_h", "k_z", "T_stuck", "climb_lookahead", "column_hold",
-                     "vfh_neighbour_radius", "rejoin_distance", "trail_spacing", "arrive_radius", "gap_lookahead", "gap_depth", "gap_margin",
+                     "vfh_neighbour_radius", "rejoin_distance", "trail_spacing", "arrive_radius", "stuck_window",
+                     "gap_lookahead", "gap_depth", "gap_margin",
                      "k_gap", "gap_speed", "leader_stopped_speed"):
             _check_range(o, name, getattr(self, name), 0.0, None)
         _check_range(o, "leader_speed_cap", self.leader_speed_cap, 0.0, 1.0, lo_open=True)
@@ -161,6 +170,9 @@ class _UAVMemory:
     replans: int = 0
     trail: list = field(default_factory=list)
     trail_progress: int = 0
+    arrived: bool = False
+    best_goal_distance: float = math.inf
+    last_progress_time: float = 0.0
 
 
 class FusionExpert(OnboardPolicy):
@@ -205,6 +217,8 @@ class FusionExpert(OnboardPolicy):
 
         z_slot = view.z_ref + view.slot_offset[2]
         if view.is_leader and np.linalg.norm(view.goal[:2] - pos[:2]) < cfg.arrive_radius:
+            mem.arrived = True
+        if view.is_leader and mem.arrived:
             self.diagnostics[view.agent] = {"mode": mem.mode, "stuck": False, "arrived": True, "replans": mem.replans}
             return np.array([0.0, 0.0, float(np.clip(cfg.k_z * (z_slot - pos[2]), -lim.vz_max, lim.vz_max))])
         if view.is_leader:
@@ -288,11 +302,21 @@ class FusionExpert(OnboardPolicy):
             v_c = 0.0
             vz_cmd = _away_vertically(pos, view.occupancy, cfg.vfh.R_w, lim)
         self.diagnostics[view.agent] = {
-            "mode": mem.mode, "stuck": not res.admissible, "n_admissible": res.n_admissible,
+            "mode": mem.mode, "stuck": not res.admissible or self._no_progress(view, mem, cfg, t),
+            "n_admissible": res.n_admissible,
             "vfh_blocked": bool(vfh_result.blocked) if vfh_result is not None else False, "emergency": emergency,
             "replans": mem.replans, "path_found": mem.path_found, "column": t < mem.column_until,
             "clearance": clearance_now}
         return np.array([v_c, w_c, vz_cmd])
+
+    def _no_progress(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float) -> bool:
+        """Whether the leader has gained less than ``trail_spacing`` on the goal in the last ``stuck_window`` s."""
+        if not view.is_leader:
+            return False
+        dist = float(np.linalg.norm(view.goal[:2] - view.state[:2]))
+        if dist < mem.best_goal_distance - cfg.trail_spacing:
+            mem.best_goal_distance, mem.last_progress_time = dist, t
+        return t - mem.last_progress_time >= cfg.stuck_window
 
     # ------------------------------------------------------------------ targets
     def _leader_target(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float):
