@@ -43,7 +43,13 @@ class ExpertConfig(_Config):
                        level means fewer points but a pyramid refresh every step) [X]
     replan_check_period  how often (s) the leader rebuilds its raster and tests the (d5) triggers [X]
     leader_stopped_speed  below this leader speed a follower's speed reference uses its whole slot error, not
-                       the along-track part of (g2), so it closes on a parked slot from the side too [X]
+                       the along-track part of (g2), so it closes on a parked slot from the side too, scaled
+                       by the cosine of its bearing error (0 beyond 90 degrees): a unicycle that keeps its
+                       speed while its target is abeam orbits the target instead of reaching it [X]
+    dock_turn_angle    a follower of a parked leader that is itself below ``leader_stopped_speed`` turns in
+                       place toward its target when that lies more than this far off its nose and at least
+                       e_f / 2 away; DWA's rotation cost and sum-normalised heading term otherwise hold it at
+                       rest there (w = 0 wins at v = 0) [X]
     e0, e1, min_leader_scale  leader formation feedback of (g2): its speed cap scales from 1 at a mean follower
                        error e0 down to min_leader_scale at e1 [D: the spec's 1 m, 3 m, 0.3 held a forest
                        formation, which is always stretched, at 0.24 m/s]
@@ -82,6 +88,7 @@ class ExpertConfig(_Config):
     replan_check_period: float = 0.5
     k_f: float = 0.5
     leader_stopped_speed: float = 0.05
+    dock_turn_angle: float = math.radians(45.0)
     k_h: float = 1.0
     k_z: float = 0.5
     leader_speed_cap: float = 0.8
@@ -128,6 +135,7 @@ class ExpertConfig(_Config):
         _check_range(o, "yield_factor", self.yield_factor, 0.0, 1.0)
         _check_range(o, "min_leader_scale", self.min_leader_scale, 0.0, 1.0)
         _check_range(o, "level_window", self.level_window, 0.0, math.pi)
+        _check_range(o, "dock_turn_angle", self.dock_turn_angle, 0.0, math.pi)
         _check_range(o, "geofence_spacing", self.geofence_spacing, 0.05, None)
         _check_range(o, "e0", self.e0, 0.0, None)
         _check_range(o, "e1", self.e1, self.e0, None, lo_open=True)
@@ -298,6 +306,12 @@ class FusionExpert(OnboardPolicy):
                 vz_cmd = _vertical_escape(vfh_result, lim)
         else:
             mem.stuck_time = 0.0
+        to_goal = goal - pos[:2]
+        if (not view.is_leader and view.leader_state[V] < cfg.leader_stopped_speed and s[V] < cfg.leader_stopped_speed
+                and np.linalg.norm(to_goal) >= view.config.formation.e_f / 2
+                and abs(_bearing_error(s, to_goal)) > cfg.dock_turn_angle):
+            v_c = 0.0                                           # turn in place toward a parked slot
+            w_c = float(np.clip(_bearing_error(s, to_goal), -lim.w_max, lim.w_max))
         if emergency and vfh_result is not None:
             v_c = 0.0
             vz_cmd = _away_vertically(pos, view.occupancy, cfg.vfh.R_w, lim)
@@ -429,8 +443,9 @@ class FusionExpert(OnboardPolicy):
             if path.length - path._arc[path.progress] > cfg.astar.lookahead:   # not yet at the trail's end
                 return guide, guide, None, None
         e_par = float((slot_now - view.state[:2]) @ heading_l)
-        if lead[V] < cfg.leader_stopped_speed:
-            e_par = float(np.linalg.norm(slot_now - view.state[:2]))   # closing on a parked slot, any side
+        if lead[V] < cfg.leader_stopped_speed:                  # closing on a parked slot, from any side
+            to_slot = slot_now - view.state[:2]
+            e_par = float(np.linalg.norm(to_slot)) * max(0.0, math.cos(_bearing_error(view.state, to_slot)))
         v_ref = float(np.clip(lead[V] + cfg.k_f * e_par, 0.0, lim.v_max))
         return goal, lookahead, None, v_ref
 
@@ -638,6 +653,11 @@ def _follower_errors(view) -> np.ndarray:
     slots = s[:2] + np.column_stack([c * off[:, 0] - sn * off[:, 1], sn * off[:, 0] + c * off[:, 1]])
     alive = view.neighbour_alive
     return np.linalg.norm(view.neighbour_states[alive, :2] - slots[alive], axis=1)
+
+
+def _bearing_error(state, direction) -> float:
+    """Signed angle (rad) from the UAV's heading to the horizontal ``direction``."""
+    return wrap(math.atan2(direction[1], direction[0]) - state[PSI])
 
 
 def _predict_unicycle(state, horizon: float, dt: float):
