@@ -315,6 +315,9 @@ class FusionExpert(OnboardPolicy):
         if emergency and vfh_result is not None:
             v_c = 0.0
             vz_cmd = _away_vertically(pos, view.occupancy, cfg.vfh.R_w, lim)
+            alive = view.neighbour_alive
+            if _closes_on_movers(pos, vz_cmd, movers_pos[alive], movers_vel[alive], cfg.dwa, lim):
+                vz_cmd = 0.0                    # the escape would fly into a neighbour (above or below)
         self.diagnostics[view.agent] = {
             "mode": mem.mode, "stuck": not res.admissible or self._no_progress(view, mem, cfg, t),
             "n_admissible": res.n_admissible,
@@ -677,6 +680,16 @@ def _vertical_escape(r, lim) -> float:
     if not r.binary[0].any():
         return -lim.vz_max
     return 0.0
+
+
+def _closes_on_movers(pos, vz: float, movers_pos, movers_vel, dwa: DWAConfig, lim) -> bool:
+    """Whether a vertical move at ``vz`` comes within ``dwa.R_uu`` of a neighbour over the DWA horizon (g6)."""
+    if len(movers_pos) == 0 or vz == 0.0:
+        return False
+    k = np.arange(1, round(dwa.T_p / lim.dt) + 1)[:, None, None] * lim.dt
+    own = pos[None, None, :] + k * np.array([0.0, 0.0, vz])
+    rel = own - (movers_pos[None] + k * movers_vel[None])
+    return bool(np.linalg.norm(rel, axis=2).min() < dwa.R_uu)
 
 
 def _away_vertically(pos, occ_map, radius, lim) -> float:
