@@ -174,8 +174,10 @@ def test_bootstrap_matches_scipy(values, seed):
     mean, lo, hi = bootstrap_ci(v, n_boot=4000, seed=seed)
     ref = bootstrap((v,), np.mean, n_resamples=4000, method="percentile", random_state=seed).confidence_interval
     spread = v.std() / math.sqrt(v.size) + 1e-9
+    lattice = (v.max() - v.min()) / v.size        # bootstrap means of few distinct values move in these steps
+    tol = 0.35 * spread + lattice
     assert mean == pytest.approx(v.mean())
-    assert abs(lo - ref.low) < 0.35 * spread and abs(hi - ref.high) < 0.35 * spread
+    assert abs(lo - ref.low) < tol and abs(hi - ref.high) < tol
     assert lo <= mean <= hi
 
 
