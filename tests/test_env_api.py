@@ -8,6 +8,7 @@ from pettingzoo.test import (api_test, max_cycles_test, parallel_api_test, paral
                              state_test)
 
 from uavform_env import env, formation_v0, parallel_env
+from uavform_env.env import INFO_KEYS
 from uavform_env.scenarios import list_scenarios
 
 from .conftest import small_env_kwargs
@@ -49,13 +50,11 @@ def test_spaces_are_built_once():
 def test_every_scenario_runs(name):
     penv = parallel_env(scenario=name, max_cycles=15)
     obs, infos = penv.reset(seed=1)
-    keys = None
     while penv.agents:
         for a, o in obs.items():
             assert penv.observation_space(a).contains(o), (name, a)
         for a, info in infos.items():
-            keys = keys or set(info)
-            assert set(info) == keys
+            assert set(info) == set(INFO_KEYS)
             assert all(isinstance(v, (int, float, bool, np.number)) for v in info.values())
         obs, rewards, terms, truncs, infos = penv.step({a: penv.action_space(a).sample() for a in penv.agents})
         assert set(obs) == set(rewards) == set(terms) == set(truncs) == set(infos)
