@@ -225,14 +225,15 @@ def _rasterise(occupied, origin, res, box_spans, cylinders, spheres):
 
 
 @numba.njit(cache=True)
-def _heightmap_kernel(heights, origin, res, box_spans, box_tops, cylinders, spheres):
+def _heightmap_kernel(heights, origin, res, box_spans, box_tops, discs):
+    """Tops over each cell; ``discs`` rows (x, y, r, z, dome): top z, plus the dome height if dome = 1 (spheres)."""
     mx, my = heights.shape
     for b in range(box_spans.shape[0]):
         for i in range(box_spans[b, 0], box_spans[b, 2]):
             for j in range(box_spans[b, 1], box_spans[b, 3]):
                 heights[i, j] = max(heights[i, j], box_tops[b])
-    for c in range(cylinders.shape[0]):  # a disc reaches a cell iff the disc centre is nearer than r to the cell
-        x, y, r = cylinders[c, 0], cylinders[c, 1], cylinders[c, 2]
+    for c in range(discs.shape[0]):  # a disc reaches a cell iff the disc centre is nearer than r to the cell
+        x, y, r, z, dome = discs[c, 0], discs[c, 1], discs[c, 2], discs[c, 3], discs[c, 4]
         r_tie = r - _SNAP * res  # a disc tangent to a cell edge does not cover the cell
         i0, i1 = _centre_span(x - r, x + r, origin[0], res, mx)
         j0, j1 = _centre_span(y - r, y + r, origin[1], res, my)
@@ -240,20 +241,9 @@ def _heightmap_kernel(heights, origin, res, box_spans, box_tops, cylinders, sphe
             dx = max(origin[0] + i * res - x, 0.0, x - origin[0] - (i + 1) * res)
             for j in range(j0, j1):
                 dy = max(origin[1] + j * res - y, 0.0, y - origin[1] - (j + 1) * res)
-                if dx * dx + dy * dy < r_tie * r_tie:
-                    heights[i, j] = max(heights[i, j], cylinders[c, 4])
-    for s in range(spheres.shape[0]):  # the sphere's highest point over the cell is above its nearest point
-        x, y, r = spheres[s, 0], spheres[s, 1], spheres[s, 3]
-        r_tie = r - _SNAP * res
-        i0, i1 = _centre_span(x - r, x + r, origin[0], res, mx)
-        j0, j1 = _centre_span(y - r, y + r, origin[1], res, my)
-        for i in range(i0, i1):
-            dx = max(origin[0] + i * res - x, 0.0, x - origin[0] - (i + 1) * res)
-            for j in range(j0, j1):
-                dy = max(origin[1] + j * res - y, 0.0, y - origin[1] - (j + 1) * res)
                 d2 = dx * dx + dy * dy
-                if d2 < r_tie * r_tie:
-                    heights[i, j] = max(heights[i, j], spheres[s, 2] + math.sqrt(r * r - d2))
+                if d2 < r_tie * r_tie:  # a sphere's highest point over the cell is above its nearest point
+                    heights[i, j] = max(heights[i, j], z + dome * math.sqrt(r * r - d2))
 
 
 def _read_only(a: np.ndarray) -> np.ndarray:
@@ -319,6 +309,8 @@ class World:
         origin, shape = grid_frame(self.bounds_lo[:2], self.bounds_hi[:2], res)
         heights = np.zeros(shape, dtype=np.float64)
         box_spans = _cell_span(self.boxes[:, :2], self.boxes[:, 3:5], origin, res, np.array(shape))
-        _heightmap_kernel(heights, origin, res, box_spans, np.ascontiguousarray(self.boxes[:, 5]),
-                          self.cylinders, self.spheres)
+        c, sp = self.cylinders, self.spheres
+        discs = np.concatenate([np.column_stack([c[:, :3], c[:, 4], np.zeros(len(c))]),
+                                np.column_stack([sp[:, :2], sp[:, 3], sp[:, 2], np.ones(len(sp))])]).reshape(-1, 5)
+        _heightmap_kernel(heights, origin, res, box_spans, np.ascontiguousarray(self.boxes[:, 5]), discs)
         return origin, res, heights.astype(np.float32)
