@@ -25,6 +25,7 @@ from .onboard import OnboardView, PriorMap
 from .rewards import compute_rewards
 from .scenarios import Scenario, load_scenario, make_scenario, validate_scenario
 from .sensing import RangeSensor
+from .world import grid_frame
 
 INFO_KEYS = ("clearance", "separation", "formation_error", "target_distance", "goal_distance", "speed",
              "altitude", "crashed", "success", "step", "TimeLimit.truncated")
@@ -124,10 +125,10 @@ class FormationEnv(ParallelEnv):
             seed if seed is not None else int(root.generate_state(1)[0]))
         scn = self._scenario_for(layout_seed)
         cfg = self.config
-        validate_scenario(scn, cfg.uav, cfg.formation.z_ref)
-        if self.scenario is None or scn != self.scenario:
-            self.scenario = scn
-            self.world = scn.build_world()
+        world = self.world if scn == self.scenario else scn.build_world()
+        validate_scenario(scn, cfg.uav, cfg.formation.z_ref, world)
+        if world is not self.world:
+            self.scenario, self.world = scn, world
             self._prior = self._build_prior()
         m = scn.mission
         self.goal = np.asarray(m.goal, dtype=np.float64)
@@ -165,11 +166,9 @@ class FormationEnv(ParallelEnv):
         if ep.prior_map == "heightmap":
             origin_xy, res, heights = self.world.heightmap(ep.prior_resolution)
         else:
-            lo, hi = np.asarray(self.scenario.bounds_lo), np.asarray(self.scenario.bounds_hi)
             res = ep.prior_resolution
-            origin_xy = np.floor(lo[:2] / res) * res
-            shape = np.ceil((hi[:2] - origin_xy) / res).astype(int)
-            heights = np.zeros(tuple(shape), np.float32)
+            origin_xy, shape = grid_frame(self.scenario.bounds_lo[:2], self.scenario.bounds_hi[:2], res)
+            heights = np.zeros(shape, np.float32)
         heights = np.array(heights, np.float32)
         heights.flags.writeable = False
         return PriorMap(np.asarray(origin_xy, float), float(res), heights, ep.prior_map)

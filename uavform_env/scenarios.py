@@ -539,7 +539,7 @@ def load_scenario(name_or_path, seed: int = 0, *, n_uavs: int | None = None, for
                          difficulty=difficulty)
 
 
-def validate_scenario(scn: Scenario, limits: UAVLimits, z_ref: float) -> None:
+def validate_scenario(scn: Scenario, limits: UAVLimits, z_ref: float, world: World | None = None) -> None:
     """Raise ValueError listing every reason the mission cannot start with UAVs of these limits.
 
     Checked: the leader's start and the goal, and every follower's start slot (at ``z_ref``), lie inside
@@ -566,7 +566,7 @@ def validate_scenario(scn: Scenario, limits: UAVLimits, z_ref: float) -> None:
         problems.append(str(exc))
     pts = np.array(points)
     lo, hi = np.array(scn.bounds_lo), np.array(scn.bounds_hi)
-    clearance = scn.build_world().clearance(pts)
+    clearance = (world if world is not None else scn.build_world()).clearance(pts)
     for name, p, c in zip(names, pts, clearance):
         where = f"{name} ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f})"
         if np.any(p < lo) or np.any(p > hi):
