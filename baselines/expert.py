@@ -18,6 +18,7 @@ import numpy as np
 
 from uavform_env.config import _check_choice, _check_int, _check_range, _Config
 from uavform_env.dynamics import PSI, V, VZ, W, commands_to_actions, wrap
+from uavform_env.world import grid_frame
 
 from .astar import AStarConfig, GlobalPath, Raster, inflate, plan_path, replan_trigger
 from .dwa import DWAConfig, dwa_plan
@@ -401,19 +402,12 @@ class FusionExpert(OnboardPolicy):
         else:
             columns = _columns_without_gap(centres, res, lim.z_min, lim.z_max, 2 * h_b + res)
         blocked = np.zeros(self.raster.shape, bool)
-        if len(columns):
-            cells = np.floor((columns - np.asarray(self.raster.origin)) / self.raster.res).astype(np.int64)
-            ok = np.all((cells >= 0) & (cells < np.asarray(self.raster.shape)), axis=1)
-            blocked[cells[ok, 0], cells[ok, 1]] = True
+        _mark(blocked, self.raster, columns)
         prior = view.prior
         if prior.kind != "none":
             limit = view.z_ref - h_b if cfg.astar_layer == "band" else lim.z_max - 2 * h_b
-            pi, pj = np.nonzero(prior.heights > limit)
-            if pi.size:
-                xy = prior.origin + (np.column_stack([pi, pj]) + 0.5) * prior.resolution
-                cells = np.floor((xy - np.asarray(self.raster.origin)) / self.raster.res).astype(np.int64)
-                ok = np.all((cells >= 0) & (cells < np.asarray(self.raster.shape)), axis=1)
-                blocked[cells[ok, 0], cells[ok, 1]] = True
+            cells = np.argwhere(prior.heights > limit)
+            _mark(blocked, self.raster, prior.origin + (cells + 0.5) * prior.resolution)
         return blocked
 
     def _follower_target(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float):
@@ -506,11 +500,17 @@ class FusionExpert(OnboardPolicy):
 
 # ---------------------------------------------------------------------- helpers
 def _raster_for(view, res: float) -> Raster:
-    lo = np.asarray(view.bounds_lo[:2], dtype=np.float64)
-    hi = np.asarray(view.bounds_hi[:2], dtype=np.float64)
-    origin = np.floor(lo / res) * res
-    shape = np.ceil((hi - origin) / res).astype(int)
-    return Raster(tuple(origin), res, tuple(int(v) for v in shape))
+    origin, shape = grid_frame(view.bounds_lo[:2], view.bounds_hi[:2], res)
+    return Raster(tuple(origin), res, shape)
+
+
+def _mark(blocked: np.ndarray, raster: Raster, xy: np.ndarray) -> None:
+    """Block the raster cells containing the points ``xy`` (K, 2); points outside the raster are ignored."""
+    if len(xy) == 0:
+        return
+    cells = np.floor((xy - np.asarray(raster.origin)) / raster.res).astype(np.int64)
+    ok = np.all((cells >= 0) & (cells < np.asarray(raster.shape)), axis=1)
+    blocked[cells[ok, 0], cells[ok, 1]] = True
 
 
 def _columns_without_gap(centres: np.ndarray, res: float, z_min: float, z_max: float, gap: float) -> np.ndarray:
