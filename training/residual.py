@@ -1,0 +1,131 @@
+"""ResidualWeightEnv: the fusion expert flies, and the agent's action rescales its evaluation weights.
+
+The paper names the expert's fixed weights as its weakness. Here every UAV's action is a bounded
+adjustment of the seven weights (DWA alpha0, beta, gamma, eps0; 3D VFH+ k1, k2, k3): weight ``i`` in
+use is ``default_i * max_factor ** a_i`` with ``a_i`` in [-1, 1]. A zero action is a factor of exactly
+1.0, so it reproduces the expert bit for bit. The observation is the inner observation followed by
+the weights in use, encoded as their action (``log(w / default) / log(max_factor)``), in [-1, 1].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from gymnasium import spaces
+from pettingzoo.utils import BaseParallelWrapper
+
+from baselines.expert import WEIGHT_NAMES, ExpertConfig, FusionExpert
+from baselines.policy import check_flyable
+from uavform_env.config import _check_range, _Config
+
+N_WEIGHTS = len(WEIGHT_NAMES)
+
+
+@dataclass(frozen=True)
+class ResidualConfig(_Config):
+    """How far the residual policy may move the expert's weights.
+
+    max_factor  each weight is scaled by a factor in [1 / max_factor, max_factor]
+    """
+
+    max_factor: float = 4.0
+
+    def __post_init__(self):
+        _check_range("ResidualConfig", "max_factor", self.max_factor, 1.0, 1e3, lo_open=True)
+
+
+class WeightAdjuster:
+    """The action <-> weights mapping, shared by the training wrapper and the trained-policy object."""
+
+    def __init__(self, expert_config: ExpertConfig, residual: ResidualConfig):
+        self.defaults = expert_config.weights()
+        self.max_factor = float(residual.max_factor)
+
+    def check(self, agent: str, action) -> np.ndarray:
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (N_WEIGHTS,):
+            raise ValueError(f"action of {agent}: expected shape ({N_WEIGHTS},) (one adjustment per weight "
+                             f"{WEIGHT_NAMES}), got shape {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action of {agent}: expected finite values in [-1, 1], got {a.tolist()}")
+        return np.clip(a, -1.0, 1.0)
+
+    def weights(self, action: np.ndarray) -> np.ndarray:
+        """Weights in use for a checked action; a zero action gives the defaults exactly."""
+        return self.defaults * np.power(self.max_factor, action)
+
+    @staticmethod
+    def observe(inner_obs: np.ndarray, action: np.ndarray) -> np.ndarray:
+        """The inner observation followed by the weights in use (encoded as the action that set them)."""
+        return np.concatenate([inner_obs, action]).astype(np.float32)
+
+
+class ResidualWeightEnv(BaseParallelWrapper):
+    """A ParallelEnv with the inner env's agents; each action adjusts that UAV's expert weights.
+
+    Args:
+        env: a ``FormationEnv`` (e.g. ``uavform_env.parallel_env(...)``) or a wrapper of one.
+        expert_config: the expert's configuration; its weights are the zero-action defaults.
+        residual: ``ResidualConfig`` (the bound of the adjustment).
+    """
+
+    def __init__(self, env, expert_config: ExpertConfig | None = None, residual: ResidualConfig | None = None):
+        super().__init__(env)
+        check_flyable(env)
+        self.expert_config = expert_config if expert_config is not None else ExpertConfig()
+        self.residual = residual if residual is not None else ResidualConfig()
+        for name, value, cls in (("expert_config", self.expert_config, ExpertConfig),
+                                 ("residual", self.residual, ResidualConfig)):
+            if not isinstance(value, cls):
+                raise ValueError(f"{name}: expected a {cls.__name__}, got {type(value).__name__}")
+        self.adjuster = WeightAdjuster(self.expert_config, self.residual)
+        self.expert = FusionExpert(self.expert_config)
+        inner = env.observation_space(env.possible_agents[0])
+        obs_space = spaces.Box(np.concatenate([inner.low, np.full(N_WEIGHTS, -1.0, np.float32)]),
+                               np.concatenate([inner.high, np.full(N_WEIGHTS, 1.0, np.float32)]), dtype=np.float32)
+        act_space = spaces.Box(-1.0, 1.0, (N_WEIGHTS,), np.float32)
+        self.observation_spaces = {a: obs_space for a in env.possible_agents}
+        self.action_spaces = {a: act_space for a in env.possible_agents}
+        self.metadata = dict(env.metadata, name="formation_residual_v0")
+        self._in_use: dict[str, np.ndarray] = {}
+        self._inner_obs: dict = {}
+
+    def observation_space(self, agent):
+        return self.observation_spaces[agent]
+
+    def action_space(self, agent):
+        return self.action_spaces[agent]
+
+    @property
+    def weights_in_use(self) -> dict[str, np.ndarray]:
+        """{agent: the seven weights the expert flew with at the last step}."""
+        return {a: self.adjuster.weights(act) for a, act in self._in_use.items()}
+
+    def reset(self, seed=None, options=None):
+        obs, infos = self.env.reset(seed=seed, options=options)
+        self.expert.reset(self.env, seed)
+        self._in_use = {a: np.zeros(N_WEIGHTS) for a in self.env.possible_agents}
+        self._inner_obs = obs
+        self.agents = list(self.env.agents)
+        return {a: self.adjuster.observe(o, self._in_use[a]) for a, o in obs.items()}, infos
+
+    def step(self, actions):
+        if not isinstance(actions, dict):
+            raise ValueError(f"actions: expected a dict {{agent: array of shape ({N_WEIGHTS},)}}, "
+                             f"got {type(actions).__name__}")
+        unknown = [a for a in actions if a not in self.action_spaces]
+        if unknown:
+            raise ValueError(f"actions for unknown agent(s) {unknown}; agents are {self.possible_agents}")
+        missing = [a for a in self.env.agents if a not in actions]
+        if missing:
+            raise ValueError(f"actions: no action for live agent(s) {missing}")
+        checked = {a: self.adjuster.check(a, actions[a]) for a in self.env.agents}
+        self._in_use.update(checked)
+        weights = {a: self.adjuster.weights(act) for a, act in checked.items()}
+        flight = self.expert.act(self._inner_obs, self.env, weights=weights)
+        obs, rewards, terms, truncs, infos = self.env.step(flight)
+        self._inner_obs = obs
+        self.agents = list(self.env.agents)
+        return ({a: self.adjuster.observe(o, self._in_use[a]) for a, o in obs.items()},
+                rewards, terms, truncs, infos)
