@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from dataclasses import fields
 
 from .config import TrainConfig
@@ -16,7 +17,12 @@ def _train(args) -> int:
         if name in given:
             given[name] = tuple(given[name])
     cfg = TrainConfig(**given)                 # invalid hyperparameters fail here, before any env is built
-    state = train(cfg, args.out, resume=args.resume, progress=not args.quiet)
+    try:
+        state = train(cfg, args.out, resume=args.resume, progress=not args.quiet)
+    except KeyboardInterrupt:
+        print(f"interrupted: the last and best checkpoints in {args.out} are intact; add --resume to continue",
+              file=sys.stderr)
+        return 130
     best = state["best"]
     print(f"trained {state['timesteps']} agent-steps in {state['wall_time'] / 60:.1f} min; best at "
           f"{best['timesteps']} agent-steps: held-out success {best['metrics']['success']:.2f}, "

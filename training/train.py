@@ -67,11 +67,13 @@ def _prepare_folder(cfg: TrainConfig, out: Path, resume: bool) -> dict:
     if resume:
         if not (out / "last.zip").is_file() or not state_path.is_file():
             raise ValueError(f"--resume: {str(out)!r} holds no last.zip and state.json to continue from")
-        saved = json.loads(config_path.read_text())
-        if saved != json.loads(json.dumps(cfg.to_dict())):
-            changed = sorted(k for k in saved if saved[k] != json.loads(json.dumps(cfg.to_dict())).get(k))
-            raise ValueError(f"--resume: the run in {str(out)!r} was started with other settings ({changed}); "
-                             "resume with the same arguments")
+        saved, given = json.loads(config_path.read_text()), json.loads(json.dumps(cfg.to_dict()))
+        changed = sorted(k for k in saved if k != "timesteps" and saved[k] != given.get(k))
+        if changed:
+            raise ValueError(f"--resume: the run in {str(out)!r} was started with other settings "
+                             f"({', '.join(f'{k}={saved[k]}' for k in changed)}); resume with the same arguments "
+                             "(only --timesteps may change)")
+        atomic_write_json(config_path, given)
         return json.loads(state_path.read_text())
     if (out / "last.zip").exists() or state_path.exists():
         raise ValueError(f"{str(out)!r} already holds a training run: pass --resume to continue it, or choose "
@@ -138,7 +140,9 @@ class _EvalCheckpoints(BaseCallback):
     def _on_training_start(self) -> None:
         from tqdm import tqdm
 
-        self.bar = tqdm(total=self.cfg.timesteps, initial=self.state["timesteps"], unit="step", desc="training",
+        rollout = self.model.n_steps * self.training_env.num_envs     # SB3 stops after whole rollouts
+        total = -(-self.cfg.timesteps // rollout) * rollout
+        self.bar = tqdm(total=total, initial=self.state["timesteps"], unit="step", desc="training",
                         disable=not self.show_progress, dynamic_ncols=True)
 
     def _on_step(self) -> bool:

@@ -10,6 +10,7 @@ worker processes (or in-process for tests), auto-reset when their episode ends, 
 from __future__ import annotations
 
 import multiprocessing as mp
+import signal
 from collections.abc import Callable
 
 import numpy as np
@@ -70,6 +71,7 @@ class EpisodeCopy:
 
 def _worker(remote, parent_remote, fn_wrapper: CloudpickleWrapper, index: int, n_copies: int) -> None:
     parent_remote.close()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C is the parent's to handle; it closes the workers
     copy = EpisodeCopy(fn_wrapper.var, index, n_copies)
     while True:
         cmd, data = remote.recv()
@@ -126,7 +128,10 @@ class SharedPolicyVecEnv(VecEnv):
             return [getattr(c, cmd)(*a) for c, a in zip(self.copies, args)]
         for remote, a in zip(self.remotes, args):
             remote.send((cmd, a))
-        results = [remote.recv() for remote in self.remotes]
+        try:
+            results = [remote.recv() for remote in self.remotes]
+        except (EOFError, ConnectionError) as e:
+            raise RuntimeError(f"a worker process of SharedPolicyVecEnv died during {cmd}: {e!r}") from e
         for k, r in enumerate(results):
             if isinstance(r, Exception):
                 raise RuntimeError(f"env copy {k}: {cmd} failed: {r!r}") from r
