@@ -32,7 +32,7 @@ class TrainConfig(_Config):
     timesteps: int = 200_000
     n_envs: int = 2
     n_steps: int = 256
-    batch_size: int = 512
+    batch_size: int = 640
     n_epochs: int = 5
     learning_rate: float = 3e-4
     gamma: float = 0.99
