@@ -161,9 +161,17 @@ def test_training_writes_checkpoints_logs_and_a_curve(trained):
     assert list((out / "logs" / "segment-0").glob("events.out.tfevents.*"))
     assert (out / "logs" / "segment-0" / "progress.csv").stat().st_size > 0
     rows = (out / "evaluations.csv").read_text().splitlines()
-    assert rows[0].startswith("timesteps,") and len(rows) == 3          # at 120 and 240 (= the end: no repeat)
+    assert rows[0].startswith("timesteps,") and len(rows) == 4          # at 0, 120 and 240 (= the end: no repeat)
     meta = read_meta(out / "best.zip")
     assert meta["env"] == "formation_v0" and len(meta["obs_norm"]["mean"]) == 336
+
+
+def test_the_zero_initialised_start_is_scored_as_the_expert(trained):
+    out, _ = trained
+    start = (out / "evaluations.csv").read_text().splitlines()[1].split(",")
+    expert = run_episode(parallel_env(scenario="forest", n_uavs=2, max_cycles=30), FusionExpert(), seed=500)
+    assert start[0] == "0"
+    assert float(start[4]) == expert["formation_error_rms"] and float(start[5]) == expert["flight_time"]
 
 
 def test_refuses_to_overwrite_and_resumes_without_losing_best(trained, tmp_path):

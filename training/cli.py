@@ -33,7 +33,7 @@ def _train(args) -> int:
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("train", help="train a residual weight policy for the fusion expert (SB3 PPO)",
-                              formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                              description="Train a residual weight policy; every TrainConfig field is a flag.")
     p.add_argument("--out", required=True, help="run folder (checkpoints, logs, learning curve)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -42,6 +42,8 @@ def register(subparsers) -> None:
         flag = "--" + f.name.replace("_", "-")
         if f.name in ("net_arch", "eval_seeds"):
             p.add_argument(flag, type=int, nargs="+", default=None, help=f"(default: {list(f.default)})")
+        elif isinstance(f.default, bool):
+            p.add_argument(flag, action=argparse.BooleanOptionalAction, default=None, help=f"(default: {f.default})")
         else:
             p.add_argument(flag, type=types[type(f.default)], default=None, help=f"(default: {f.default})")
     p.set_defaults(func=_train)

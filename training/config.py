@@ -22,6 +22,10 @@ class TrainConfig(_Config):
                                    n_steps * n_envs * n_uavs samples)
     max_factor                     the residual bound (ResidualConfig)
     seed                           seeds PPO, the network and the training episodes (seed, seed + 1, ...)
+    zero_init                      start from the expert exactly: the action layer's weights and bias are zero,
+                                   so the deterministic policy adjusts nothing until training moves it; the
+                                   evaluation at step 0 is then the expert's score, and best.zip only replaces
+                                   it with a policy that ranks higher on the held-out seeds
     eval_every, eval_seeds         evaluate the deterministic policy every eval_every agent-steps on these
                                    held-out episode seeds; the best by the leaderboard's ranking is kept
     """
@@ -42,6 +46,7 @@ class TrainConfig(_Config):
     log_std_init: float = -1.0
     net_arch: tuple = (128, 128)
     max_factor: float = 4.0
+    zero_init: bool = True
     seed: int = 1000
     eval_every: int = 50_000
     eval_seeds: tuple = (500, 501)
@@ -65,6 +70,8 @@ class TrainConfig(_Config):
         if not self.net_arch or not all(isinstance(n, int) and not isinstance(n, bool) and n > 0 for n in self.net_arch):
             raise ValueError(f"{name}.net_arch={self.net_arch!r}: expected a non-empty list of positive layer sizes")
         ResidualConfig(max_factor=self.max_factor)
+        if not isinstance(self.zero_init, bool):
+            raise ValueError(f"{name}.zero_init={self.zero_init!r}: expected true or false")
         _check_int(name, "seed", self.seed, 0, 2**31 - 1)
         _check_int(name, "eval_every", self.eval_every, 1)
         if not self.eval_seeds or not all(isinstance(s, int) and 0 <= s < self.seed for s in self.eval_seeds):

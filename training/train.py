@@ -104,6 +104,9 @@ def train(cfg: TrainConfig, out: str | os.PathLike, *, resume: bool = False, pro
                         learning_rate=cfg.learning_rate, gamma=cfg.gamma, gae_lambda=cfg.gae_lambda,
                         clip_range=cfg.clip_range, ent_coef=cfg.ent_coef, seed=cfg.seed, device="cpu",
                         policy_kwargs={"net_arch": list(cfg.net_arch), "log_std_init": cfg.log_std_init})
+            if cfg.zero_init:
+                model.policy.action_net.weight.data.zero_()
+                model.policy.action_net.bias.data.zero_()
         model.set_logger(configure(str(out / "logs" / f"segment-{segment}"), ["csv", "tensorboard"]))
         callback = _EvalCheckpoints(cfg, out, state, probe_env, venv, progress)
         remaining = cfg.timesteps - state["timesteps"]
@@ -144,6 +147,8 @@ class _EvalCheckpoints(BaseCallback):
         total = -(-self.cfg.timesteps // rollout) * rollout
         self.bar = tqdm(total=total, initial=self.state["timesteps"], unit="step", desc="training",
                         disable=not self.show_progress, dynamic_ncols=True)
+        if self.state["best"] is None:
+            self.checkpoint(self.model)               # the starting point is the reference to beat
 
     def _on_step(self) -> bool:
         self.bar.update(self.training_env.num_envs)
@@ -165,8 +170,8 @@ class _EvalCheckpoints(BaseCallback):
 
     def checkpoint(self, model) -> None:
         """Evaluate, then write best.zip (if better), last.zip and state.json, each atomically, in that order."""
-        if self.state["timesteps"] == model.num_timesteps:   # nothing new since the last one
-            return
+        if self.state["best"] is not None and self.state["timesteps"] == model.num_timesteps:
+            return                                         # nothing new since the last one
         meta = self._meta(model)
         metrics = evaluate(ResidualPolicy(model, meta, name="training"), self.cfg)
         key = list(ranking_key(metrics))
