@@ -46,6 +46,11 @@ class DWAConfig(_Config):
     ``rot_weight_mode``, and ``alpha0``, ``kappa``, ``R_sw``, ``eps0``, ``d_in``, ``d_out``.
     ``R_sw=None`` means one horizon of travel at full speed, ``UAVLimits.v_max * T_p``.
     ``R_uu`` is the separation to moving neighbours below which a sample is inadmissible (g6).
+    ``dist_cap`` [X]: the clearance at which the dist term saturates (None: ``D_cap``, as in (b5)).
+    Sum normalisation over the admissible samples turns centimetre clearance differences among the
+    slow samples of a small window into the largest term, so with an obstacle inside ``D_cap`` the
+    planner prefers standing still; a lower cap lets only genuinely close obstacles rank samples.
+    Admissibility (c >= d_brake, c > 0) is unaffected.
     """
 
     T_p: float = 3.0
@@ -72,6 +77,7 @@ class DWAConfig(_Config):
     rotation_mode: str = "abs"
     rot_weight_mode: str = "proximity"
     R_uu: float = 0.8
+    dist_cap: float | None = None
 
     def __post_init__(self):
         o = "DWAConfig"
@@ -87,6 +93,8 @@ class DWAConfig(_Config):
         _check_range(o, "kappa", self.kappa, 0.0, 1.0, hi_open=True)
         if self.R_sw is not None:
             _check_range(o, "R_sw", self.R_sw, 0.0, None, lo_open=True)
+        if self.dist_cap is not None:
+            _check_range(o, "dist_cap", self.dist_cap, 0.0, self.D_cap, lo_open=True)
         _check_choice(o, "heading_ref", self.heading_ref, HEADING_REFS)
         _check_choice(o, "astar_weight_mode", self.astar_weight_mode, ASTAR_WEIGHT_MODES)
         _check_choice(o, "rotation_mode", self.rotation_mode, ROTATION_MODES)
@@ -416,7 +424,7 @@ def _select(score, vs, ws):
 
 @numba.njit(cache=True)
 def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, obstacles, radii, r_uav,
-                 a_max, v_max, w_max, D_cap, movers_pos, movers_vel, R_uu, goal_x, goal_y, la_x, la_y,
+                 a_max, v_max, w_max, D_cap, dist_cap, movers_pos, movers_vel, R_uu, goal_x, goal_y, la_x, la_y,
                  heading_from_current, lam, progress_reach, vel_target, rot_ref, alpha, kappa,
                  alpha_per_candidate, beta, gamma, eps, minmax, exact_clearance):
     """Window sampling, rollout, clearance, admissibility and the eq. 12 score of every sample.
@@ -454,7 +462,7 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, o
             ok = ok and c_mover >= 0.0
             c = min(c, c_mover)
         clearance[i] = c
-        dist[i] = min(c, D_cap)
+        dist[i] = min(c, dist_cap)
         admissible[i] = ok
         ex, ey, psi_end = path[n_steps - 1, 0], path[n_steps - 1, 1], path[n_steps - 1, 3]
         endpoint[i, :] = path[n_steps - 1, :]
@@ -563,7 +571,8 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
     def run(v_lo_, v_hi_, w_lo_, w_hi_, exact_clearance):
         return _plan_kernel(state, v_lo_, v_hi_, w_lo_, w_hi_, cfg.v_res, cfg.w_res, vz_cmd, limits.dt, n_steps,
                             obstacles, radii, limits.r_uav, limits.a_max, limits.v_max, limits.w_max, cfg.D_cap,
-                            movers_pos, movers_vel, cfg.R_uu, goal_xy[0], goal_xy[1], la_xy[0], la_xy[1],
+                            cfg.D_cap if cfg.dist_cap is None else cfg.dist_cap, movers_pos, movers_vel, cfg.R_uu,
+                            goal_xy[0], goal_xy[1], la_xy[0], la_xy[1],
                             cfg.heading_ref == "current", lam, reach, vel_target,
                             state[5] if cfg.rotation_mode == "delta" else 0.0, alpha, cfg.kappa, per_candidate,
                             cfg.beta, cfg.gamma, _rotation_weight(cfg, clearance_now, prev_alignment),

@@ -75,10 +75,14 @@ class ExpertConfig(_Config):
                        vertical run through the next ``gap_depth`` m of obstacle (3D VFH+'s 5x5 window cannot
                        resolve gaps of about 2 m) with altitude gain ``k_gap``, at most ``gap_speed`` m/s
                        and with leaf voxels as DWA obstacles while it passes [X]
+    climb_target_limit in CLIMB, when 3D VFH+'s elevation points toward the target altitude, the climb rate is
+                       at most ``k_z`` times the altitude error: the 5-degree elevation cells never give 0,
+                       so a follower parked at its slot (target ~1 m away) otherwise oscillates +/- 1 m
+                       around the slot altitude and never closes the formation [X]
     """
 
     dwa: DWAConfig = field(default_factory=lambda: DWAConfig.ablation("IDWA", approach_speed_profile=True,
-                                                                                      r_goal=0.1))
+                                                                                      r_goal=0.1, dist_cap=0.5))
     vfh: VFHConfig = field(default_factory=VFHConfig)
     astar: AStarConfig = field(default_factory=lambda: AStarConfig(prune=True))
     use_vfh: bool = True
@@ -114,13 +118,14 @@ class ExpertConfig(_Config):
     gap_margin: float = 0.1
     k_gap: float = 1.0
     gap_speed: float = 0.3
+    climb_target_limit: bool = True
 
     def __post_init__(self):
         o = "ExpertConfig"
         for name, cls in (("dwa", DWAConfig), ("vfh", VFHConfig), ("astar", AStarConfig)):
             if not isinstance(getattr(self, name), cls):
                 raise ValueError(f"{o}.{name}: expected a {cls.__name__}")
-        for name in ("use_vfh", "neighbour_prediction", "shape_switching"):
+        for name in ("use_vfh", "neighbour_prediction", "shape_switching", "climb_target_limit"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{o}.{name}={getattr(self, name)!r}: expected a bool")
         _check_choice(o, "astar_layer", self.astar_layer, ASTAR_LAYERS)
@@ -271,8 +276,7 @@ class FusionExpert(OnboardPolicy):
                     obstacles, _ = view.occupancy.occupied_in_sphere(pos, reach, level=0)
                     radius = view.occupancy.resolution * math.sqrt(3.0) / 2.0
             elif mode == CLIMB and not vfh_result.blocked:
-                e = vfh_result.elevation
-                vz_cmd = float(np.clip(max(s[V], 0.3) * math.tan(e), -lim.vz_max, lim.vz_max))
+                vz_cmd = _climb_rate(vfh_result.elevation, s[V], z_goal - pos[2], cfg, lim)
             elif mode == BLOCKED:
                 vz_cmd = 0.0
             if not vfh_result.blocked and not level_way and gap_z is None:
@@ -671,6 +675,15 @@ def _predict_unicycle(state, horizon: float, dt: float):
     x = state[0] + np.sum(state[V] * np.cos(psi) * dt)
     y = state[1] + np.sum(state[V] * np.sin(psi) * dt)
     return np.array([x, y]), float(psi[-1])
+
+
+def _climb_rate(elevation: float, v: float, dz_goal: float, cfg: ExpertConfig, lim) -> float:
+    """Vertical speed of CLIMB along 3D VFH+'s elevation; with ``climb_target_limit``, when that climb heads
+    for the target altitude (error ``dz_goal``) it is at most ``k_z * |dz_goal|``, so it does not overshoot."""
+    vz = float(np.clip(max(v, 0.3) * math.tan(elevation), -lim.vz_max, lim.vz_max))
+    if cfg.climb_target_limit and vz * dz_goal > 0.0:
+        vz = math.copysign(min(abs(vz), cfg.k_z * abs(dz_goal)), vz)
+    return vz
 
 
 def _vertical_escape(r, lim) -> float:

@@ -4,12 +4,15 @@ Episodes are the slow part of the suite, so every scenario here is a few metres 
 episode ends within a few hundred steps.
 """
 
+import math
+
 import numpy as np
 import pytest
 from gymnasium import spaces
 
 from baselines.expert import WEIGHT_NAMES, ExpertConfig, FusionExpert, StandardDWA
 from uavform_env import EnvConfig, parallel_env
+from uavform_env.config import UAVLimits
 from uavform_env.scenarios import Mission, Scenario
 from uavform_env.world import Box
 
@@ -137,6 +140,7 @@ def test_weights_change_the_actions():
     (dict(leader_speed_cap=0.0), "ExpertConfig.leader_speed_cap"),
     (dict(debounce=0), "ExpertConfig.debounce"),
     (dict(dwa="IDWA"), "ExpertConfig.dwa"),
+    (dict(climb_target_limit=1), "ExpertConfig.climb_target_limit"),
 ])
 def test_bad_config_names_the_field(kwargs, match):
     with pytest.raises(ValueError, match=match):
@@ -158,6 +162,22 @@ def test_bad_weight_vectors_are_rejected(weights):
     expert.reset(penv, seed=0)
     with pytest.raises(ValueError, match="weights"):
         expert.act(obs, penv, weights={"uav_0": weights})
+
+
+def test_climb_toward_the_target_altitude_does_not_overshoot():
+    """3D VFH+'s elevation cells never give 0: at a slot 0.1 m below, the next cell up would climb at
+    0.3 * tan(2.5 deg) = 0.013 m/s, at 0.5 m below a 27 deg cell at 0.15 m/s; the rate toward the target
+    altitude is capped at k_z times the error, and a climb over an obstacle (away from it) is left alone."""
+    from baselines.expert import _climb_rate
+    cfg = ExpertConfig()
+    lim = UAVLimits()
+    e = math.radians(27.5)
+    assert _climb_rate(e, 0.0, 0.1, cfg, lim) == pytest.approx(cfg.k_z * 0.1)
+    assert _climb_rate(-e, 0.0, -0.1, cfg, lim) == pytest.approx(-cfg.k_z * 0.1)
+    assert _climb_rate(e, 0.0, -0.5, cfg, lim) == pytest.approx(0.3 * math.tan(e))
+    assert _climb_rate(e, 0.0, 5.0, cfg, lim) == pytest.approx(0.3 * math.tan(e))
+    off = ExpertConfig(climb_target_limit=False)
+    assert _climb_rate(e, 0.0, 0.1, off, lim) == pytest.approx(0.3 * math.tan(e))
 
 
 def test_weight_names_follow_the_config():
