@@ -14,12 +14,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import uavform_env
 from uavform_env.cli import main
 from uavform_env.evaluation import (WALL_CLOCK_METRICS, bootstrap_ci, list_suites, load_suite, read_results,
                                     run_suite, summarize, write_tables)
 from uavform_env.evaluation.runner import RESULTS_FILE
 from uavform_env.evaluation.suites import Episode, Suite
-from uavform_env.evaluation.table import to_marl_eval
+from uavform_env.evaluation.table import summarize, to_markdown, to_marl_eval
 from uavform_env.metrics import METRIC_NAMES
 from uavform_env.scenarios import list_scenarios
 
@@ -243,6 +244,10 @@ def test_serial_run_records_failures_and_writes_tables(tiny, serial_run):
     for name in ("leaderboard.md", "leaderboard.csv", "leaderboard.json", "leaderboard.png"):
         assert (out / name).stat().st_size > 0
     assert tiny.hash in (out / "leaderboard.md").read_text()
+    assert len({r["code"] for r in records}) == 1 and records[0]["code"].startswith(uavform_env.__version__)
+    assert f"Code: `{records[0]['code']}`\n" in (out / "leaderboard.md").read_text()
+    mixed = to_markdown(summarize(tiny, [{**r, "code": "0.0.1"} if r["policy"] == EXPLODING else r for r in records]))
+    assert "**mixed**" in mixed
     csv_rows = (out / "leaderboard.csv").read_text().splitlines()
     assert len(csv_rows) == 1 + len(POLICIES) * len(METRIC_NAMES)
 
@@ -316,8 +321,13 @@ def test_checkpoint_that_does_not_load(tiny, tmp_path, monkeypatch):
 
     ckpt = tmp_path / "model.zip"
     ckpt.write_bytes(b"not a model")
-    with pytest.raises(ValueError, match="no loader for '.zip' files"):
+    with pytest.raises(ValueError, match="not a readable zip file"):
         run_suite(tiny, [str(ckpt)], tmp_path / "a", progress=False)
+    unknown = tmp_path / "model.ckpt"
+    unknown.write_bytes(b"weights")
+    with pytest.raises(ValueError, match="no loader for '.ckpt' files"):
+        run_suite(tiny, [str(unknown)], tmp_path / "a", progress=False)
+    assert not (tmp_path / "a").exists()
 
     def broken_loader(spec):
         def load():

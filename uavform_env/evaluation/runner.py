@@ -13,6 +13,7 @@ import hashlib
 import json
 import math
 import os
+import subprocess
 import time
 import traceback
 import warnings
@@ -59,6 +60,26 @@ def policy_fingerprint(spec: str) -> str | None:
     if ":" in spec or not path.is_file():
         return None
     return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+
+
+def code_version() -> str:
+    """The package version, plus the git commit ('.dirty' with uncommitted changes) when run from a checkout.
+
+    The suite hash fixes the episodes; this names the code that flew them, so a table can say when its
+    rows come from different code.
+    """
+    from .. import __version__
+
+    root = Path(__file__).resolve().parents[2]
+    try:
+        def git(*args):
+            return subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, timeout=10,
+                                  check=True).stdout.strip()
+        commit = git("rev-parse", "--short=10", "HEAD")
+        dirty = git("status", "--porcelain", "--untracked-files=no")
+    except (OSError, subprocess.SubprocessError):
+        return __version__
+    return f"{__version__}+g{commit}" + (".dirty" if dirty else "")
 
 
 def check_policies(specs: list[str]) -> None:
@@ -176,11 +197,12 @@ def run_suite(suite: Suite, policies: list[str], out: str | os.PathLike, *, work
     check_policies(policies)
     done = prepare_folder(suite, out, resume)
     fingerprints = {p: policy_fingerprint(p) for p in policies}
+    code = code_version()
     todo = [(e, p) for p in policies for e in suite.episodes if (e.key, p) not in done]
     results_path = Path(out) / RESULTS_FILE
 
     def record(rec: dict) -> None:
-        rec.update(suite=suite.name, suite_hash=suite.hash, policy_sha256=fingerprints[rec["policy"]])
+        rec.update(suite=suite.name, suite_hash=suite.hash, policy_sha256=fingerprints[rec["policy"]], code=code)
         append_line(results_path, json.dumps(rec, sort_keys=True, allow_nan=True))
 
     calls = [(e.to_dict(), p, time_limit) for e, p in todo]

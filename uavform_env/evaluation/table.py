@@ -74,6 +74,7 @@ def summarize(suite: Suite, records: list[dict]) -> dict:
             mean, lo, hi = bootstrap_ci(column)
             metrics[m] = {"mean": mean, "ci_low": lo, "ci_high": hi, "n": int(np.isfinite(column).sum())}
         rows.append({"policy": policy, "episodes": len(ordered), "failed": sum(r["status"] != "ok" for r in ordered),
+                     "code": sorted({r.get("code", "unknown") for r in ordered}),
                      "complete": len(ordered) == len(suite.episodes), "metrics": metrics})
     rows.sort(key=_score_key)
     for rank, row in enumerate(rows, 1):
@@ -111,6 +112,9 @@ def to_markdown(summary: dict) -> str:
                   if not r["complete"]]
     if incomplete:
         lines += [f"**Incomplete** (rank not final): {', '.join(incomplete)}", ""]
+    codes = sorted({c for r in summary["policies"] for c in r["code"]})
+    lines += [f"Code: {', '.join(f'`{c}`' for c in codes)}" + (" (**mixed**: rows come from different code)"
+                                                               if len(codes) > 1 else ""), ""]
     header = ["rank", "policy", "episodes", "failed", *(_label(m) for m in ranked)]
     lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for r in summary["policies"]:
