@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import configure
@@ -32,8 +33,8 @@ from uavform_env.files import append_line, atomic_write_json
 from uavform_env.formation_v0 import parallel_env
 from uavform_env.rollout import run_episode
 
-from .config import TrainConfig
 from .checkpoint import ResidualPolicy, checkpoint_meta, read_meta, save_checkpoint
+from .config import TrainConfig
 from .residual import ResidualConfig, ResidualWeightEnv
 from .vecenv import SharedPolicyVecEnv
 
@@ -88,6 +89,7 @@ def train(cfg: TrainConfig, out: str | os.PathLike, *, resume: bool = False, pro
         raise ValueError(f"cfg: expected a TrainConfig, got {type(cfg).__name__}")
     out = Path(out)
     state = _prepare_folder(cfg, out, resume)
+    torch.set_num_threads(1)          # a small MLP: one thread is fastest and leaves the cores to the env copies
     segment = len(list((out / "logs").glob("segment-*")))   # one log folder per (re)start: SB3's CSV overwrites
     venv = SharedPolicyVecEnv(_MakeEnv(cfg), cfg.n_envs, processes=cfg.n_envs > 1)
     venv = VecNormalize(VecMonitor(venv), norm_obs=True, norm_reward=True, gamma=cfg.gamma)
@@ -124,9 +126,8 @@ def _restore_normalisation(venv, meta: dict) -> None:
     venv.obs_rms.mean = np.asarray(norm["mean"])
     venv.obs_rms.var = np.asarray(norm["var"])
     venv.obs_rms.count = norm["count"]
-    ret = meta.get("ret_norm")
-    if ret is not None:
-        venv.ret_rms.mean, venv.ret_rms.var, venv.ret_rms.count = ret["mean"], ret["var"], ret["count"]
+    ret = meta["ret_norm"]
+    venv.ret_rms.mean, venv.ret_rms.var, venv.ret_rms.count = ret["mean"], ret["var"], ret["count"]
 
 
 class _EvalCheckpoints(BaseCallback):
