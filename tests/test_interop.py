@@ -185,11 +185,6 @@ def test_torchrl_pettingzoo_wrapper(variant):
     env.close()
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "FormationEnv.reset(seed=None) draws fresh OS entropy instead of continuing the stream of the last "
-    "seeded reset (the Gymnasium/PettingZoo convention). TorchRL's seed= only seeds the reset made at "
-    "construction; rollout() then resets unseeded, so a seeded TorchRL rollout is not reproducible. "
-    "SharedPolicyVecEnv avoids this by seeding every episode itself."))
 def test_torchrl_seeded_rollout_is_reproducible():
     rollouts = []
     for _ in range(2):

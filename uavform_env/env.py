@@ -87,6 +87,7 @@ class FormationEnv(ParallelEnv):
         self.state_space = spaces.Box(-1.0, 1.0, (9 * self.n_uavs + 3,), np.float32)
         self.sensor = RangeSensor(cfg.sensor)
         self.agents: list[str] = []
+        self._episode_seeds: np.random.Generator | None = None
         self.scenario: Scenario | None = None
         self.world = None
         self._renderer = None
@@ -117,6 +118,10 @@ class FormationEnv(ParallelEnv):
 
     # ------------------------------------------------------------------ reset
     def reset(self, seed: int | None = None, options: dict | None = None):
+        if seed is not None:
+            self._episode_seeds = np.random.default_rng(seed)
+        elif self._episode_seeds is not None:   # Gymnasium's convention: unseeded resets continue the seeded stream
+            seed = int(self._episode_seeds.integers(2**63))
         root = np.random.SeedSequence(seed)
         sensor_ss, wind_ss = root.spawn(2)
         self._sensor_rng = np.random.default_rng(sensor_ss)
