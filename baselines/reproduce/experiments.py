@@ -24,6 +24,7 @@ from typing import Callable
 
 import numpy as np
 
+from uavform_env.evaluation.runner import code_version
 from uavform_env.files import append_line, atomic_write_bytes, atomic_write_json
 from uavform_env.formation import slot_offsets, slot_positions
 from uavform_env.formation_v0 import parallel_env
@@ -189,9 +190,9 @@ def registered(name: str) -> Callable[[int], Scenario]:
 # ------------------------------------------------------------------------------------------------ E6
 def turnaround(n_uavs: int, formation: str, spacing: float) -> Callable[[int], Scenario]:
     """An open 24 x 20 m field; the formation starts facing away from a goal 8-10 m behind it (bearing
-    jittered by up to 20 degrees) [D]. The leader turns and flies head-on through its followers, whose
-    slots swing round it and cross each other's paths: every UAV has to pass its neighbours. ``spacing``
-    below the default 2 m makes the conflicts close."""
+    jittered by up to 20 degrees) [D]. The leader has to turn round past its followers, whose slots swing
+    round it and cross each other's paths: every UAV has to pass its neighbours. ``spacing`` below the
+    default 2 m makes the conflicts close."""
     def build(seed: int) -> Scenario:
         rng = np.random.default_rng([6, seed])
         start = np.array([14.0, 10.0])
@@ -292,10 +293,10 @@ EXPERIMENTS = (
         "machine). Episodes: 1200 steps (blocks, corridor), 2000 (wall-gap, urban)."),
     Experiment(
         "E6", "Conflicts between UAVs: with and without neighbour prediction", (
-            Setting("head-on", turnaround(3, "column", 1.2), 600, 300, "3-UAV column facing away from the goal: the "
-                    "leader flies head-on at its followers"),
-            Setting("crossing", turnaround(5, "wedge", 1.2), 600, 300, "5-UAV wedge facing away from the goal: the "
-                    "slots swing round the leader and cross"),
+            Setting("head-on", turnaround(3, "column", 1.2), 600, 300, "3-UAV column facing away from the goal: "
+                    "the leader has to turn round past the followers lined up behind it, toward the goal"),
+            Setting("crossing", turnaround(5, "wedge", 1.2), 600, 300, "5-UAV wedge facing away from the goal: "
+                    "while the leader turns round, the slots swing round it and the followers' paths cross"),
         ), (PREDICTION, NO_PREDICTION), 4, ("head-on", "crossing"),
         "Open field, no obstacles; goal 8-10 m behind the formation, bearing jittered by up to 20 deg; formation "
         "spacing 1.2 m instead of 2 m, so turning round brings the UAVs within a few R_uu of each other [D]. "
@@ -458,10 +459,12 @@ def run_all(out, *, seeds: int | None = None, quick: bool = False, resume: bool 
     atomic_write_json(out / PLAN_FILE, plan)
     done = {r["key"] for r in records}
     todo = [r for r in planned if r.key not in done]
+    code = code_version()
     from tqdm import tqdm
 
     with tqdm(total=len(todo), desc="reproduce", unit="run", disable=not progress) as bar:
         for rec in _execute(todo, workers, str(out)):
+            rec["code"] = code
             append_line(out / RUNS_FILE, json.dumps(rec, allow_nan=True))
             records.append(rec)
             bar.update(1)

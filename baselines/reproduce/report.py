@@ -35,24 +35,26 @@ TABLE_METRICS = {
     "E3": ("success", "flight_time", "path_length_leader", "total_turning", "direction_sign_changes"),
     "E4": ("success", "collision", "flight_time", "path_length_leader", "min_clearance", "altitude_deviation_max"),
     "E5": ("success", "collision", "path_length_leader", "min_clearance", "min_separation", "formation_error_rms",
-           "formation_error_max", "time_to_reform"),
+           "formation_error_max", "reformed", "time_to_reform"),
     "E6": ("collision", "min_separation", "separation_kept", "formation_error_rms", "altitude_deviation_max"),
 }
 
 
-DERIVED = ("separation_kept", "turning_per_metre")
+DERIVED = ("separation_kept", "turning_per_metre", "reformed")
 
 
 def run_values(record: dict) -> dict:
-    """The metric values of one record, plus the derived ``separation_kept`` (d_uu >= R_uu) and
+    """The metric values of one record, plus derived ones: ``separation_kept`` (d_uu >= R_uu),
     ``turning_per_metre`` (leader's total turning / path length: smoothness that does not reward
-    stopping early); NaN for a failed run."""
+    stopping early) and ``reformed`` (the formation closed up after its last break before the episode
+    ended; ``time_to_reform`` is undefined otherwise). NaN for a failed run or where it does not apply."""
     if record["status"] != "ok":
         return {m: math.nan for m in (*METRIC_NAMES, *DERIVED)}
     m = {k: float(v) for k, v in record["metrics"].items()}
     sep, length = m["min_separation"], m["path_length_leader"]
     m["separation_kept"] = math.nan if math.isnan(sep) else float(sep >= R_UU)
     m["turning_per_metre"] = m["total_turning"] / length if length > 0.5 else math.nan
+    m["reformed"] = math.nan if math.isnan(sep) else float(math.isfinite(m["time_to_reform"]))
     return m
 
 
@@ -105,7 +107,7 @@ def _compare(exp: str, metric: str, better: str, worse: str, *, strict: bool, hi
                 continue
             good = (a > b if strict else a >= b - tol) if higher else (a < b if strict else a <= b + tol)
             ok &= good
-            parts.append(f"{setting}: {better} {a:.3g} vs {worse} {b:.3g}")
+            parts.append(f"{exp} {setting}: {better} {a:.3g} vs {worse} {b:.3g}")
         if not parts:
             return None
         return ok, f"{metric} ({'higher' if higher else 'lower'} is better; mean over seeds) - " + "; ".join(parts)
@@ -122,18 +124,18 @@ def _all_of(*checks):
     return check
 
 
-def _separation_kept(exp: str, variant: str):
+def _separation_kept(exp: str, variant: str, contrast: str):
+    """Every run of ``variant`` kept d_uu >= R_uu; the evidence also counts ``contrast``'s runs."""
     def check(summary):
         parts, ok = [], True
         for setting, rows in summary.get(exp, {}).items():
-            row = rows.get(variant)
-            if row is None:
+            if variant not in rows:
                 continue
-            kept = row["separation_kept"]
-            worst = row["min_separation"]
-            ok &= kept["mean"] == 1.0
-            parts.append(f"{setting}: {variant} kept d_uu >= {R_UU} m in {kept['mean'] * kept['n']:.0f}/{kept['n']} "
-                         f"runs (mean min separation {worst['mean']:.3g} m)")
+            ok &= rows[variant]["separation_kept"]["mean"] == 1.0
+            counts = [f"{v} in {rows[v]['separation_kept']['mean'] * rows[v]['separation_kept']['n']:.0f}/"
+                      f"{rows[v]['separation_kept']['n']} runs (mean minimum separation "
+                      f"{rows[v]['min_separation']['mean']:.3g} m)" for v in (variant, contrast) if v in rows]
+            parts.append(f"{exp} {setting}: d_uu >= {R_UU} m kept by " + ", ".join(counts))
         return (ok, "; ".join(parts)) if parts else None
     return check
 
@@ -160,11 +162,12 @@ CLAIMS = (
           _all_of(_compare("E3", "success", "DWA+E8", "DWA", strict=True, higher=True),
                   _compare("E3", "total_turning", "DWA+E8", "DWA", strict=True, higher=False)),
           "DWA+E8 arrives more often and turns less.",
-          "E8 only reshapes the heading term near the goal. In these runs the UAV either circles the goal 1.5-3.5 m "
-          "away - about the radius of a full-speed turn, v_max / w_max = 2.9 m, as the speed term keeps rewarding "
-          "full speed - or stops beside the obstacle (the freeze of C2), with or without E8. DWA+E8+profile, which "
-          "also lowers the speed reference near the goal ((c1) approach_speed_profile, an [X] option), is in the "
-          "table to show how much of this is speed (see its row)."),
+          "E8 only reshapes the heading term near the goal. The runs that do not arrive either circle the goal "
+          "1.5-3.5 m away - about the radius of a full-speed turn, v_max / w_max = 2.9 m, as the speed term keeps "
+          "rewarding full speed (path lengths over 30 m in 60 s) - or stop beside the obstacle (the freeze of C2), "
+          "with or without E8. Braking near the goal does not cure it: DWA+E8+profile ((c1) approach_speed_profile, "
+          "an [X] option) brakes only within about 2.5 m of the goal, inside the orbit, and where it does slow "
+          "down next to the obstacle it freezes like C2 (see its row)."),
     Claim("C4", "E2", "The A* weight (E10) lets the planner escape traps that standard DWA falls into: DWA+E8+E10 "
           "and IDWA arrive more often than DWA in the U-trap and the dense fields.",
           _all_of(_compare("E2", "success", "DWA+E8+E10", "DWA", strict=True, higher=True),
@@ -185,12 +188,15 @@ CLAIMS = (
           "path ends in the turning it did while slowing down, and E11's weight is 0 within d_in of an obstacle, "
           "exactly where the turning happens."),
     Claim("C6", "E4", "The fused 3D controller passes obstacles that fixed-altitude 2D avoidance cannot: a single "
-          "UAV arrives more often, with a similar or larger minimum clearance.",
+          "UAV (E4) and the five-UAV wedge in the same kind of world (E5 blocks) arrive more often, the single UAV "
+          "with a similar (within 5 cm) or larger minimum clearance.",
           _all_of(_compare("E4", "success", "fusion", "IDWA-2D", strict=True, higher=True),
-                  _compare("E4", "min_clearance", "fusion", "IDWA-2D", strict=False, higher=True, tol=0.05)),
-          "The fusion climbs over the low blocks that stop the fixed-altitude controller.",
-          "See the table: the fixed-altitude controller is not stopped more often, or the fusion passes closer "
-          "to obstacles."),
+                  _compare("E4", "min_clearance", "fusion", "IDWA-2D", strict=False, higher=True, tol=0.05),
+                  _compare("E5", "success", "fusion", "IDWA-2D", strict=True, higher=True, settings=("blocks",))),
+          "The fusion climbs over the low blocks (altitude profile in the E4 figure) that stop the fixed-altitude "
+          "controller; the spec's 'shorter L' cannot be compared, as the fixed-altitude runs do not arrive.",
+          "The fixed-altitude controller is not stopped more often, or the fusion passes closer to obstacles "
+          "(see the evidence)."),
     Claim("C7", "E5", "Both formations fly collision-free through the block world and the corridor.",
           lambda s: _no_collisions(s, "E5"),
           "No run of either controller collided.",
@@ -200,30 +206,33 @@ CLAIMS = (
           _compare("E5", "formation_error_rms", "fusion", "IDWA-2D", strict=True, higher=False,
                    settings=("blocks", "corridor")),
           "The fused formation's followers stay closer to their slots.",
-          "The planar formation mostly stops in front of what it cannot pass (its leader freezes or finds no "
-          "level way, see success and path length), and a formation that stands still keeps its shape; the fused "
-          "formation flies on through the obstacles and stretches while it does. Lower error here means less "
-          "progress, not better formation keeping."),
-    Claim("C9", "E5", "The fused formation re-forms faster after avoidance: shorter time from the last break "
-          "(> 1 m) until every follower is within e_f = 0.5 m.",
-          _compare("E5", "time_to_reform", "fusion", "IDWA-2D", strict=True, higher=False,
-                   settings=("blocks", "corridor")),
-          "The fused formation closes up faster after passing the obstacles.",
-          "Time to re-form is only defined for runs that re-formed (n in the table); a formation that never broke "
-          "scores 0, so the planar formation that stopped in front of the obstacles wins this comparison without "
-          "having passed anything, and fused runs that never closed up within the episode are left out."),
+          "Not in every world (see the evidence). The corridor's walls reach above z_max, so the third dimension "
+          "offers nothing there; the fused formation strings out in it (followers fall far behind their slots "
+          "while the leader flies on, see the formation-error figure), whereas a planar formation that stops at "
+          "the entrance keeps its shape. Lower error can mean less progress rather than better formation "
+          "keeping: compare path length and success."),
+    Claim("C9", "E5", "The fused formation re-forms after avoidance where the planar one does not: a larger share of "
+          "runs closes up again (every follower within e_f = 0.5 m after the last break of more than 1 m) before "
+          "the episode ends. The time it takes is in the table (defined only for runs that re-formed).",
+          _compare("E5", "reformed", "fusion", "IDWA-2D", strict=True, higher=True, settings=("blocks", "corridor")),
+          "The fused formation closes up again after passing the obstacles more often than the planar one.",
+          "Not in every world (see the evidence). In the corridor the fused formation had not closed up again "
+          "when the episode ended (followers strung out behind the leader: the mission-completion problem listed "
+          "under Status in the top-level README), while a planar formation that never broke (it stopped at the "
+          "entrance) counts as re-formed."),
     Claim("C10", "E6", "With neighbour prediction (g6) the UAVs keep d_uu >= R_uu = 0.8 m in every conflict run.",
-          _separation_kept("E6", "prediction"),
-          "Every run with prediction kept the safe separation.",
+          _separation_kept("E6", "prediction", "no-prediction"),
+          "Every run with prediction kept the safe separation (the evidence also counts the runs without it).",
           "Some runs with prediction came closer than R_uu."),
     Claim("C11", "E6", "Neighbour prediction keeps more separation than treating neighbours as standing "
           "obstacles: higher mean minimum separation with prediction.",
           _compare("E6", "min_separation", "prediction", "no-prediction", strict=True, higher=True),
           "Prediction keeps the UAVs farther apart.",
-          "Without prediction the neighbours are still obstacles at their broadcast positions, re-planned every "
-          "0.1 s, and at formation speeds (<= 1 m/s) a neighbour moves at most a few decimetres per cycle, so "
-          "static avoidance already keeps them apart; prediction also makes DWA avoid where a neighbour will "
-          "be, which in the turnaround pulls UAVs into closer but still safe passes."),
+          "Not in every conflict (see the evidence): where prediction does not keep more separation, the "
+          "neighbours, which without prediction are still DWA obstacles at their broadcast positions re-planned "
+          "every 0.1 s, never came closer than the start spacing, so there was no conflict for prediction to "
+          "improve on; prediction changes the manoeuvre (the UAVs pass where a neighbour is going, not where it "
+          "is), which can mean a closer but still safe pass."),
 )
 
 
@@ -422,6 +431,8 @@ def _label(metric: str) -> str:
         return f"d_uu >= {R_UU} m (share)"
     if metric == "turning_per_metre":
         return "turning per metre (rad/m)"
+    if metric == "reformed":
+        return "re-formed (share)"
     return f"{metric} ({UNITS[metric]})" if metric in UNITS else metric
 
 
@@ -481,6 +492,7 @@ def _table(exp: str, rows: dict) -> list[str]:
 
 def to_markdown(summary: dict, claims: list[dict], figures: dict[str, str], records: list[dict], command: str) -> str:
     ok = sum(r["status"] == "ok" for r in records)
+    codes = sorted({r.get("code", "unknown") for r in records})
     lines = ["# Reproduction of the paper's claims (experiments E1-E6)", "",
              "Generated by `" + command + "` (`baselines/reproduce`); do not edit by hand. Paper: \"Multi-UAV "
              "Cooperative Obstacle Avoidance of 3D Vector Field Histogram Plus and Dynamic Window Approach\" "
@@ -488,7 +500,9 @@ def to_markdown(summary: dict, claims: list[dict], figures: dict[str, str], reco
              "0.2), so no number of the paper is compared; each claim below is a direction test on our runs, "
              "and the verdict is computed from `runs.jsonl`.", "",
              f"{len(records)} runs ({ok} finished, {len(records) - ok} failed)"
-             + (f", {sum(r['wall_time'] for r in records) / 60:.1f} min of episode wall time" if records else "") + ". "
+             + (f", {sum(r['wall_time'] for r in records) / 60:.1f} min of episode wall time" if records else "")
+             + f", code {', '.join(f'`{c}`' for c in codes)}"
+             + (" (**mixed code**: rerun into a fresh folder)" if len(codes) > 1 else "") + ". "
              "Cells: mean [95% percentile-bootstrap interval over seeds] (`uavform_env.evaluation.table."
              "bootstrap_ci`, 2000 resamples, fixed seed); `n/a` where a metric does not apply (e.g. separation "
              "with one UAV). Every run is one episode of `baselines.expert.FusionExpert` in `FormationEnv`: each UAV "
