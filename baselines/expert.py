@@ -79,6 +79,9 @@ class ExpertConfig(_Config):
                        at most ``k_z`` times the altitude error: the 5-degree elevation cells never give 0,
                        so a follower parked at its slot (target ~1 m away) otherwise oscillates +/- 1 m
                        around the slot altitude and never closes the formation [X]
+    park_turn          the parked leader turns in place (v = 0) to the heading nearest its own whose follower
+                       slots are all free in its own map and inside the world bounds: parked at the goal, it
+                       can otherwise leave a slot inside an obstacle, and the formation can never close [X]
     """
 
     dwa: DWAConfig = field(default_factory=lambda: DWAConfig.ablation("IDWA", approach_speed_profile=True,
@@ -119,13 +122,14 @@ class ExpertConfig(_Config):
     k_gap: float = 1.0
     gap_speed: float = 0.3
     climb_target_limit: bool = True
+    park_turn: bool = True
 
     def __post_init__(self):
         o = "ExpertConfig"
         for name, cls in (("dwa", DWAConfig), ("vfh", VFHConfig), ("astar", AStarConfig)):
             if not isinstance(getattr(self, name), cls):
                 raise ValueError(f"{o}.{name}: expected a {cls.__name__}")
-        for name in ("use_vfh", "neighbour_prediction", "shape_switching", "climb_target_limit"):
+        for name in ("use_vfh", "neighbour_prediction", "shape_switching", "climb_target_limit", "park_turn"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{o}.{name}={getattr(self, name)!r}: expected a bool")
         _check_choice(o, "astar_layer", self.astar_layer, ASTAR_LAYERS)
@@ -185,6 +189,7 @@ class _UAVMemory:
     trail: list = field(default_factory=list)
     trail_progress: int = 0
     arrived: bool = False
+    park_psi: float | None = None
     best_goal_distance: float = math.inf
     last_progress_time: float = 0.0
 
@@ -234,7 +239,11 @@ class FusionExpert(OnboardPolicy):
             mem.arrived = True
         if view.is_leader and mem.arrived:
             self.diagnostics[view.agent] = {"mode": mem.mode, "stuck": False, "arrived": True, "replans": mem.replans}
-            return np.array([0.0, 0.0, float(np.clip(cfg.k_z * (z_slot - pos[2]), -lim.vz_max, lim.vz_max))])
+            w_c = 0.0
+            if cfg.park_turn:
+                psi_park = _park_heading(view, mem, cfg)
+                w_c = float(np.clip(wrap(psi_park - s[PSI]), -lim.w_max, lim.w_max))
+            return np.array([0.0, w_c, float(np.clip(cfg.k_z * (z_slot - pos[2]), -lim.vz_max, lim.vz_max))])
         if view.is_leader:
             goal, lookahead, v_cap, v_ref = self._leader_target(view, mem, cfg, t)
             if goal is None:                                    # unreachable: hold position safely
@@ -675,6 +684,39 @@ def _predict_unicycle(state, horizon: float, dt: float):
     x = state[0] + np.sum(state[V] * np.cos(psi) * dt)
     y = state[1] + np.sum(state[V] * np.sin(psi) * dt)
     return np.array([x, y]), float(psi[-1])
+
+
+def _slots_free(view, psi: float, margin: float) -> bool:
+    """Whether every follower slot of a leader at its position with heading ``psi`` is free in its own map."""
+    c, sn = math.cos(psi), math.sin(psi)
+    pos = view.state[:3]
+    for off in view.offsets[1:]:
+        slot = np.array([pos[0] + c * off[0] - sn * off[1], pos[1] + sn * off[0] + c * off[1], view.z_ref + off[2]])
+        if np.any(slot[:2] < view.bounds_lo[:2] + margin) or np.any(slot[:2] > view.bounds_hi[:2] - margin):
+            return False
+        if view.occupancy.occupied_within(slot, margin):
+            return False
+    return True
+
+
+def _park_heading(view, mem: _UAVMemory, cfg: ExpertConfig, n: int = 72) -> float:
+    """The parked leader's heading: its own unless a slot is blocked, else the nearest heading with free slots."""
+    lim = view.limits
+    margin = lim.r_uav + lim.r_safe + view.occupancy.resolution
+    if mem.park_psi is not None and _slots_free(view, mem.park_psi, margin):
+        return mem.park_psi
+    psi = float(view.state[PSI])
+    if _slots_free(view, psi, margin):
+        mem.park_psi = psi
+        return psi
+    for k in range(1, n // 2 + 1):
+        for sign in (1.0, -1.0):
+            cand = wrap(psi + sign * k * 2.0 * math.pi / n)
+            if _slots_free(view, cand, margin):
+                mem.park_psi = cand
+                return cand
+    mem.park_psi = psi                          # no heading frees every slot: stay as parked
+    return psi
 
 
 def _climb_rate(elevation: float, v: float, dz_goal: float, cfg: ExpertConfig, lim) -> float:

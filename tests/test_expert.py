@@ -141,6 +141,7 @@ def test_weights_change_the_actions():
     (dict(debounce=0), "ExpertConfig.debounce"),
     (dict(dwa="IDWA"), "ExpertConfig.dwa"),
     (dict(climb_target_limit=1), "ExpertConfig.climb_target_limit"),
+    (dict(park_turn=None), "ExpertConfig.park_turn"),
 ])
 def test_bad_config_names_the_field(kwargs, match):
     with pytest.raises(ValueError, match=match):
@@ -178,6 +179,38 @@ def test_climb_toward_the_target_altitude_does_not_overshoot():
     assert _climb_rate(e, 0.0, 5.0, cfg, lim) == pytest.approx(0.3 * math.tan(e))
     off = ExpertConfig(climb_target_limit=False)
     assert _climb_rate(e, 0.0, 0.1, off, lim) == pytest.approx(0.3 * math.tan(e))
+
+
+def test_parked_leader_turns_until_every_slot_is_free():
+    """A slot inside an obstacle (in the leader's own map) makes the parked leader pick the nearest heading
+    whose slots are all free and inside the bounds; it keeps that heading while it stays free."""
+    from types import SimpleNamespace
+
+    from baselines.expert import _park_heading, _UAVMemory
+
+    class Map:                                   # one occupied disc of radius 1 m around (-2, 2)
+        resolution = 0.2
+
+        def occupied_within(self, c, r):
+            return math.hypot(c[0] + 2.0, c[1] - 2.0) < 1.0 + r
+
+    offsets = np.array([[0.0, 0.0, 0.0], [-2.0, 2.0, 0.0], [-2.0, -2.0, 0.0]])   # two rear slots
+    view = SimpleNamespace(limits=UAVLimits(), occupancy=Map(), offsets=offsets, z_ref=3.0,
+                           state=np.array([0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0]),
+                           bounds_lo=np.array([-10.0, -10.0, 0.0]), bounds_hi=np.array([10.0, 10.0, 12.0]))
+    mem = _UAVMemory()
+    psi = _park_heading(view, mem, ExpertConfig())
+    assert psi != 0.0 and mem.park_psi == psi
+    c, s_ = math.cos(psi), math.sin(psi)
+    for off in offsets[1:]:
+        slot = np.array([c * off[0] - s_ * off[1], s_ * off[0] + c * off[1], 3.0])
+        assert not view.occupancy.occupied_within(slot, 0.7)
+    view.state[3] = psi * 0.5                      # half-way through the turn: the target heading stays
+    assert _park_heading(view, mem, ExpertConfig()) == psi
+    free = SimpleNamespace(**{**vars(view), "occupancy": SimpleNamespace(resolution=0.2,
+                                                                         occupied_within=lambda c, r: False)})
+    free.state = np.array([0.0, 0.0, 3.0, 0.3, 0.0, 0.0, 0.0])
+    assert _park_heading(free, _UAVMemory(), ExpertConfig()) == 0.3
 
 
 def test_weight_names_follow_the_config():
