@@ -24,6 +24,7 @@ from typing import Callable
 
 import numpy as np
 
+from uavform_env.config import FormationConfig, MapConfig, UAVLimits
 from uavform_env.evaluation.runner import code_version
 from uavform_env.files import append_line, atomic_write_bytes, atomic_write_json
 from uavform_env.formation import slot_offsets, slot_positions
@@ -36,11 +37,11 @@ from ..astar import AStarConfig
 from ..dwa import DWAConfig
 from ..expert import ExpertConfig, FusionExpert
 
-FIGURE_SEED = 0          # the seed whose runs keep a trace (and a picture) for the report's figures
-Z_REF = 3.0              # FormationConfig().z_ref, the altitude every mission starts and ends at
-RESOLUTION = 0.2         # the voxel size of every registered scenario
-CEILING = 12.0           # world top of the registered scenarios: "tall" obstacles reach it
-R_DISC = 0.5             # spec (h2) E1: disc obstacles of radius 0.5 m
+FIGURE_SEED = 0                       # the seed whose runs keep a trace (and a picture) for the report's figures
+Z_REF = FormationConfig().z_ref       # the altitude every mission starts and ends at
+RESOLUTION = MapConfig().resolution   # the voxel size of every registered scenario
+CEILING = UAVLimits().z_max + 2.0     # world top, as in the registered scenarios: "tall" obstacles reach it
+R_DISC = 0.5                          # spec (h2) E1: disc obstacles of radius 0.5 m
 
 
 @dataclass(frozen=True)
