@@ -69,6 +69,17 @@ def test_observation_appends_the_weights_in_use():
     assert renv.observation_space("uav_1").contains(obs["uav_1"])
 
 
+def test_team_reward_is_the_mean_of_the_inner_rewards():
+    team, own = residual_env(), ResidualWeightEnv(parallel_env(**small_env_kwargs()),
+                                                  residual=ResidualConfig(reward="own"))
+    for renv in (team, own):
+        renv.reset(seed=2)
+    action = {a: np.zeros(7, np.float32) for a in team.agents}
+    team_rewards, own_rewards = team.step(action)[1], own.step(action)[1]
+    assert len(set(own_rewards.values())) > 1
+    assert all(r == np.mean(list(own_rewards.values())) for r in team_rewards.values())
+
+
 def test_parallel_api():
     parallel_api_test(residual_env(max_cycles=20), num_cycles=20)
 
@@ -90,6 +101,8 @@ def test_bad_actions_are_named(actions, message):
 def test_bad_configs_are_rejected():
     with pytest.raises(ValueError, match="ResidualConfig.max_factor"):
         ResidualConfig(max_factor=1.0)
+    with pytest.raises(ValueError, match="ResidualConfig.reward"):
+        ResidualConfig(reward="selfish")
     with pytest.raises(ValueError, match="expert_config: expected a ExpertConfig"):
         ResidualWeightEnv(parallel_env(**small_env_kwargs()), expert_config="fast")
 
@@ -245,3 +258,13 @@ def test_incompatible_checkpoints_refuse_with_the_reason(trained, tmp_path):
         load_policy(str(corrupt))
     with pytest.raises(ValueError, match="checkpoint file not found"):
         load_policy(str(tmp_path / "missing.zip"))
+
+
+def test_the_published_checkpoint_still_loads_and_flies():
+    from pathlib import Path
+
+    published = Path(__file__).resolve().parents[1] / "docs" / "training" / "rw1" / "best.zip"
+    policy = load_policy(str(published))
+    assert read_meta(published)["train_config"]["scenario"] == "forest"
+    metrics = run_episode(parallel_env(**small_env_kwargs(n_uavs=2, max_cycles=10)), policy, seed=0)
+    assert metrics["collision"] == 0.0

@@ -20,7 +20,7 @@ class TrainConfig(_Config):
     n_steps, batch_size, n_epochs, learning_rate, gamma, gae_lambda, clip_range, ent_coef, log_std_init,
     net_arch                       PPO's hyperparameters (n_steps per row: a rollout holds
                                    n_steps * n_envs * n_uavs samples)
-    max_factor                     the residual bound (ResidualConfig)
+    max_factor, reward             the residual bound and the reward mode (ResidualConfig)
     seed                           seeds PPO, the network and the training episodes (seed, seed + 1, ...)
     zero_init                      start from the expert exactly: the action layer's weights and bias are zero,
                                    so the deterministic policy adjusts nothing until training moves it; the
@@ -46,6 +46,7 @@ class TrainConfig(_Config):
     log_std_init: float = -1.0
     net_arch: tuple = (128, 128)
     max_factor: float = 4.0
+    reward: str = "team"
     zero_init: bool = True
     seed: int = 1000
     eval_every: int = 50_000
@@ -69,7 +70,7 @@ class TrainConfig(_Config):
         _check_range(name, "log_std_init", self.log_std_init, -5.0, 2.0)
         if not self.net_arch or not all(isinstance(n, int) and not isinstance(n, bool) and n > 0 for n in self.net_arch):
             raise ValueError(f"{name}.net_arch={self.net_arch!r}: expected a non-empty list of positive layer sizes")
-        ResidualConfig(max_factor=self.max_factor)
+        self.residual()
         if not isinstance(self.zero_init, bool):
             raise ValueError(f"{name}.zero_init={self.zero_init!r}: expected true or false")
         _check_int(name, "seed", self.seed, 0, 2**31 - 1)
@@ -81,6 +82,9 @@ class TrainConfig(_Config):
         if self.batch_size > rollout:
             raise ValueError(f"{name}.batch_size={self.batch_size} is larger than a rollout of n_steps * n_envs * "
                              f"n_uavs = {rollout} samples")
+
+    def residual(self) -> ResidualConfig:
+        return ResidualConfig(max_factor=self.max_factor, reward=self.reward)
 
     def env_kwargs(self) -> dict:
         return {"scenario": self.scenario, "n_uavs": self.n_uavs, "max_cycles": self.max_cycles}

@@ -17,9 +17,10 @@ from pettingzoo.utils import BaseParallelWrapper
 
 from baselines.expert import WEIGHT_NAMES, ExpertConfig, FusionExpert
 from baselines.policy import check_flyable
-from uavform_env.config import _check_range, _Config
+from uavform_env.config import _check_choice, _check_range, _Config
 
 N_WEIGHTS = len(WEIGHT_NAMES)
+REWARD_MODES = ("team", "own")
 
 
 @dataclass(frozen=True)
@@ -27,12 +28,17 @@ class ResidualConfig(_Config):
     """How far the residual policy may move the expert's weights.
 
     max_factor  each weight is scaled by a factor in [1 / max_factor, max_factor]
+    reward      "team": every UAV gets the mean reward of the live UAVs; "own": the inner env's per-UAV reward.
+                The leader's own reward has no formation term, so with "own" a shared policy learns to rush
+                the leader (progress) while the followers pay for it; "team" makes that cost everyone's [X]
     """
 
     max_factor: float = 4.0
+    reward: str = "team"
 
     def __post_init__(self):
         _check_range("ResidualConfig", "max_factor", self.max_factor, 1.0, 1e3, lo_open=True)
+        _check_choice("ResidualConfig", "reward", self.reward, REWARD_MODES)
 
 
 class WeightAdjuster:
@@ -125,6 +131,9 @@ class ResidualWeightEnv(BaseParallelWrapper):
         weights = {a: self.adjuster.weights(act) for a, act in checked.items()}
         flight = self.expert.act(self._inner_obs, self.env, weights=weights)
         obs, rewards, terms, truncs, infos = self.env.step(flight)
+        if self.residual.reward == "team" and rewards:
+            team = float(np.mean(list(rewards.values())))
+            rewards = {a: team for a in rewards}
         self._inner_obs = obs
         self.agents = list(self.env.agents)
         return ({a: self.adjuster.observe(o, self._in_use[a]) for a, o in obs.items()},

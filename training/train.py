@@ -35,7 +35,7 @@ from uavform_env.rollout import run_episode
 
 from .checkpoint import ResidualPolicy, checkpoint_meta, read_meta, save_checkpoint
 from .config import TrainConfig
-from .residual import ResidualConfig, ResidualWeightEnv
+from .residual import ResidualWeightEnv
 from .vecenv import SharedPolicyVecEnv
 
 EVAL_COLUMNS = ("timesteps", "wall_time", "success", "collision", "formation_error_rms", "flight_time", "best")
@@ -49,7 +49,7 @@ class _MakeEnv:
 
     def __call__(self):
         return ResidualWeightEnv(parallel_env(**self.cfg.env_kwargs()),
-                                 residual=ResidualConfig(max_factor=self.cfg.max_factor))
+                                 residual=self.cfg.residual())
 
 
 def evaluate(policy: ResidualPolicy, cfg: TrainConfig) -> dict:
