@@ -50,7 +50,7 @@ class TrainConfig(_Config):
     zero_init: bool = True
     seed: int = 1000
     eval_every: int = 50_000
-    eval_seeds: tuple = (500, 501)
+    eval_seeds: tuple = (500, 501, 502, 503)
 
     def __post_init__(self):
         name = "TrainConfig"
