@@ -20,6 +20,7 @@ import numpy as np
 from baselines.expert import WEIGHT_NAMES, ExpertConfig, FusionExpert
 from baselines.policy import check_flyable
 from uavform_env import __version__ as UAVFORM_VERSION
+from uavform_env.actions import check_actions
 from uavform_env.files import atomic_write_bytes
 
 from .residual import ResidualConfig, WeightAdjuster
@@ -121,8 +122,8 @@ class ResidualPolicy:
         rows = np.stack([self.adjuster.observe(observations[a], self._in_use[a]) for a in agents])
         rows = np.clip((rows - self._mean) / self._std, -self._clip, self._clip).astype(np.float32)
         actions, _ = self.model.predict(rows, deterministic=True)
-        for a, act in zip(agents, actions):
-            self._in_use[a] = self.adjuster.check(a, act)
+        self._in_use.update(check_actions(dict(zip(agents, actions)), agents, agents, len(WEIGHT_NAMES),
+                                          "the network's weight adjustments"))
         weights = {a: self.adjuster.weights(self._in_use[a]) for a in agents}
         return self.expert.act(observations, env, weights=weights)
 

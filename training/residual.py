@@ -17,6 +17,7 @@ from pettingzoo.utils import BaseParallelWrapper
 
 from baselines.expert import WEIGHT_NAMES, ExpertConfig, FusionExpert
 from baselines.policy import check_flyable
+from uavform_env.actions import check_actions
 from uavform_env.config import _check_choice, _check_range, _Config
 
 N_WEIGHTS = len(WEIGHT_NAMES)
@@ -47,15 +48,6 @@ class WeightAdjuster:
     def __init__(self, expert_config: ExpertConfig, residual: ResidualConfig):
         self.defaults = expert_config.weights()
         self.max_factor = float(residual.max_factor)
-
-    def check(self, agent: str, action) -> np.ndarray:
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != (N_WEIGHTS,):
-            raise ValueError(f"action of {agent}: expected shape ({N_WEIGHTS},) (one adjustment per weight "
-                             f"{WEIGHT_NAMES}), got shape {a.shape}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"action of {agent}: expected finite values in [-1, 1], got {a.tolist()}")
-        return np.clip(a, -1.0, 1.0)
 
     def weights(self, action: np.ndarray) -> np.ndarray:
         """Weights in use for a checked action; a zero action gives the defaults exactly."""
@@ -117,16 +109,8 @@ class ResidualWeightEnv(BaseParallelWrapper):
         return {a: self.adjuster.observe(o, self._in_use[a]) for a, o in obs.items()}, infos
 
     def step(self, actions):
-        if not isinstance(actions, dict):
-            raise ValueError(f"actions: expected a dict {{agent: array of shape ({N_WEIGHTS},)}}, "
-                             f"got {type(actions).__name__}")
-        unknown = [a for a in actions if a not in self.action_spaces]
-        if unknown:
-            raise ValueError(f"actions for unknown agent(s) {unknown}; agents are {self.possible_agents}")
-        missing = [a for a in self.env.agents if a not in actions]
-        if missing:
-            raise ValueError(f"actions: no action for live agent(s) {missing}")
-        checked = {a: self.adjuster.check(a, actions[a]) for a in self.env.agents}
+        checked = check_actions(actions, self.possible_agents, self.env.agents, N_WEIGHTS,
+                                f"one adjustment per weight {WEIGHT_NAMES}")
         self._in_use.update(checked)
         weights = {a: self.adjuster.weights(act) for a, act in checked.items()}
         flight = self.expert.act(self._inner_obs, self.env, weights=weights)

@@ -28,7 +28,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
-from uavform_env.evaluation.table import RANKING
+from uavform_env.evaluation.table import RANKING, ranking_key as leaderboard_key
 from uavform_env.files import append_line, atomic_write_json
 from uavform_env.formation_v0 import parallel_env
 from uavform_env.rollout import run_episode
@@ -59,8 +59,8 @@ def evaluate(policy: ResidualPolicy, cfg: TrainConfig) -> dict:
 
 
 def ranking_key(metrics: dict) -> tuple:
-    """Larger is better, in the leaderboard's lexicographic order."""
-    return tuple(metrics[m] if better == "higher" else -metrics[m] for m, better in RANKING)
+    """The leaderboard's score of ``metrics``, negated so that larger is better (as stored in state.json)."""
+    return tuple(-k for k in leaderboard_key(metrics))
 
 
 def _prepare_folder(cfg: TrainConfig, out: Path, resume: bool) -> dict:

@@ -16,6 +16,7 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from . import dynamics
+from .actions import check_actions
 from .config import EnvConfig
 from .dynamics import PSI, STATE_DIM, V, VZ, W
 from .formation import formation_errors, slot_offsets, slot_positions
@@ -236,26 +237,11 @@ class FormationEnv(ParallelEnv):
         return obs, rewards, terminations, truncations, infos
 
     def _validate_actions(self, actions) -> np.ndarray:
-        if not isinstance(actions, dict):
-            raise ValueError(f"actions: expected a dict {{agent: array of shape (3,)}}, got {type(actions).__name__}")
-        unknown = [a for a in actions if a not in self.agent_name_mapping]
-        if unknown:
-            raise ValueError(f"actions for unknown agent(s) {unknown}; agents are {self.possible_agents}")
-        finished = [a for a in actions if a not in self.agents]
-        if finished:
-            raise ValueError(f"actions for agent(s) {finished} that are no longer live; live agents are {self.agents}")
-        missing = [a for a in self.agents if a not in actions]
-        if missing:
-            raise ValueError(f"missing actions for live agent(s) {missing}")
+        checked = check_actions(actions, self.possible_agents, self.agents, 3,
+                                "forward speed, yaw rate, climb rate")
         acts = np.zeros((self.n_uavs, 3), np.float32)
-        for a, act in actions.items():
-            arr = np.asarray(act, dtype=np.float64)
-            if arr.shape != (3,):
-                raise ValueError(f"action of {a}: expected shape (3,) (forward speed, yaw rate, climb rate in [-1, 1]), "
-                                 f"got shape {arr.shape}")
-            if not np.all(np.isfinite(arr)):
-                raise ValueError(f"action of {a}: expected finite values in [-1, 1], got {arr.tolist()}")
-            acts[self.agent_name_mapping[a]] = np.clip(arr, -1.0, 1.0)
+        for a, act in checked.items():
+            acts[self.agent_name_mapping[a]] = act
         return acts
 
     def _apply_wind(self):

@@ -83,14 +83,19 @@ def summarize(suite: Suite, records: list[dict]) -> dict:
             "ranking": [f"{m} ({better} is better)" for m, better in RANKING], "policies": rows}
 
 
-def _score_key(row: dict) -> tuple:
+def ranking_key(means: dict) -> tuple:
+    """The documented score of {metric: mean} as a tuple; smaller ranks first, an unknown (NaN) value last."""
     key = []
     for metric, better in RANKING:
-        mean = row["metrics"][metric]["mean"]
+        mean = means[metric]
         if math.isnan(mean):
-            mean = -math.inf if better == "higher" else math.inf  # unknown ranks last
+            mean = -math.inf if better == "higher" else math.inf
         key.append(-mean if better == "higher" else mean)
-    return (*key, row["policy"])
+    return tuple(key)
+
+
+def _score_key(row: dict) -> tuple:
+    return (*ranking_key({m: row["metrics"][m]["mean"] for m, _ in RANKING}), row["policy"])
 
 
 def _cell(stat: dict) -> str:

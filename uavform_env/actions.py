@@ -1,0 +1,33 @@
+"""Checking a step's {agent: action} dict, shared by the env and the wrappers that change the action space."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def check_actions(actions, possible_agents: list[str], live_agents: list[str], size: int,
+                  meaning: str) -> dict[str, np.ndarray]:
+    """{agent: float64 action clipped to [-1, 1]} for the live agents, or a ValueError naming the agent.
+
+    ``meaning`` describes the ``size`` action components for the error messages.
+    """
+    if not isinstance(actions, dict):
+        raise ValueError(f"actions: expected a dict {{agent: array of shape ({size},)}}, got {type(actions).__name__}")
+    unknown = [a for a in actions if a not in possible_agents]
+    if unknown:
+        raise ValueError(f"actions for unknown agent(s) {unknown}; agents are {possible_agents}")
+    finished = [a for a in actions if a not in live_agents]
+    if finished:
+        raise ValueError(f"actions for agent(s) {finished} that are no longer live; live agents are {live_agents}")
+    missing = [a for a in live_agents if a not in actions]
+    if missing:
+        raise ValueError(f"missing actions: no action for live agent(s) {missing}")
+    checked = {}
+    for a, act in actions.items():
+        arr = np.asarray(act, dtype=np.float64)
+        if arr.shape != (size,):
+            raise ValueError(f"action of {a}: expected shape ({size},) ({meaning} in [-1, 1]), got shape {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"action of {a}: expected finite values in [-1, 1], got {arr.tolist()}")
+        checked[a] = np.clip(arr, -1.0, 1.0)
+    return checked
