@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+import warnings
 from pathlib import Path
 
 
@@ -51,3 +52,47 @@ def append_line(path: str | os.PathLike, line: str) -> None:
         os.fsync(fd)
     finally:
         os.close(fd)
+
+
+def read_jsonl(path: str | os.PathLike, what: str, required: frozenset = frozenset()) -> list[dict]:
+    """The records of an append-only JSON-lines file; a corrupt line raises ValueError naming it.
+
+    The one exception is a final line without its newline: the torn write of a killed run, which is
+    skipped with a warning (``set_aside_torn_line`` moves it away before a resumed run appends).
+    """
+    path = Path(path)
+    if not path.exists():
+        return []
+    lines = path.read_text(encoding="utf-8").split("\n")
+    torn = lines.pop()  # "" when the file ends with a newline
+    if torn:
+        warnings.warn(f"{path}: ignoring a torn last line (an interrupted write): {torn[:80]!r}", stacklevel=2)
+    records = []
+    for number, line in enumerate(lines, 1):
+        if not line.strip():
+            continue
+        try:
+            record = json.loads(line)
+            if not isinstance(record, dict) or not required <= set(record):
+                raise ValueError(f"missing the keys {', '.join(sorted(required))}")
+        except ValueError as e:
+            raise ValueError(f"{path}, line {number}: corrupt {what} ({e}); fix or remove that line "
+                             "(nothing was changed)") from e
+        records.append(record)
+    return records
+
+
+def set_aside_torn_line(path: str | os.PathLike) -> None:
+    """Move a torn final line (no newline) to ``<name>.torn`` so that appended lines stay whole."""
+    path = Path(path)
+    if not path.exists():
+        return
+    data = path.read_bytes()
+    cut = data.rfind(b"\n") + 1
+    if cut == len(data):
+        return
+    append_line(path.with_name(path.name + ".torn"), data[cut:].decode("utf-8", "replace"))
+    with open(path, "r+b") as f:
+        f.truncate(cut)
+        f.flush()
+        os.fsync(f.fileno())

@@ -15,10 +15,7 @@ import json
 import math
 import time
 import traceback
-import warnings
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, replace
-from multiprocessing import get_context
 from pathlib import Path
 from typing import Callable
 
@@ -26,7 +23,8 @@ import numpy as np
 
 from uavform_env.config import FormationConfig, MapConfig, UAVLimits
 from uavform_env.evaluation.runner import code_version
-from uavform_env.files import append_line, atomic_write_bytes, atomic_write_json
+from uavform_env.files import append_line, atomic_write_json, read_jsonl, set_aside_torn_line
+from uavform_env.parallel import imap_unordered
 from uavform_env.formation import slot_offsets, slot_positions
 from uavform_env.formation_v0 import parallel_env
 from uavform_env.rollout import run_episode
@@ -416,22 +414,8 @@ PLAN_FILE = "plan.json"
 
 
 def read_runs(out) -> list[dict]:
-    """The records of ``out/runs.jsonl``, skipping a torn last line (an interrupted append)."""
-    path = Path(out) / RUNS_FILE
-    if not path.exists():
-        return []
-    lines = path.read_text(encoding="utf-8").split("\n")
-    torn = lines.pop()
-    if torn:
-        warnings.warn(f"{path}: ignoring a torn last line (an interrupted write)", stacklevel=2)
-    records = []
-    for number, line in enumerate(lines, 1):
-        if line.strip():
-            try:
-                records.append(json.loads(line))
-            except ValueError as e:
-                raise ValueError(f"{path}, line {number}: corrupt run record ({e}); remove that line") from e
-    return records
+    """The records of ``out/runs.jsonl`` (see ``files.read_jsonl``: a torn last line is skipped)."""
+    return read_jsonl(Path(out) / RUNS_FILE, "run record", frozenset({"key"}))
 
 
 def run_all(out, *, seeds: int | None = None, quick: bool = False, resume: bool = False, workers: int = 1,
@@ -454,9 +438,7 @@ def run_all(out, *, seeds: int | None = None, quick: bool = False, resume: bool 
     if old_plan is not None and records and old_plan != plan:
         raise ValueError(f"out={str(out)!r} was started with {old_plan}, not {plan}: resume with the same "
                          "--seeds/--quick or choose another --out")
-    data = (out / RUNS_FILE).read_bytes() if (out / RUNS_FILE).exists() else b""
-    if data and not data.endswith(b"\n"):
-        atomic_write_bytes(out / RUNS_FILE, data[:data.rfind(b"\n") + 1])   # drop the torn line before appending
+    set_aside_torn_line(out / RUNS_FILE)
     atomic_write_json(out / PLAN_FILE, plan)
     done = {r["key"] for r in records}
     todo = [r for r in planned if r.key not in done]
@@ -464,25 +446,10 @@ def run_all(out, *, seeds: int | None = None, quick: bool = False, resume: bool 
     from tqdm import tqdm
 
     with tqdm(total=len(todo), desc="reproduce", unit="run", disable=not progress) as bar:
-        for rec in _execute(todo, workers, str(out)):
+        for rec in imap_unordered(play, [(run, str(out)) for run in todo], workers):
             rec["code"] = code
             append_line(out / RUNS_FILE, json.dumps(rec, allow_nan=True))
             records.append(rec)
             bar.update(1)
             bar.set_postfix(last=rec["key"], refresh=False)
     return records
-
-
-def _execute(runs: list[Run], workers: int, picture_dir: str):
-    """Yield ``play(run)`` for every run, in completion order (runs are independent)."""
-    if workers == 1:
-        for run in runs:
-            yield play(run, picture_dir)
-        return
-    pool = ProcessPoolExecutor(max_workers=min(workers, max(1, len(runs))), mp_context=get_context("spawn"))
-    try:
-        futures = [pool.submit(play, run, picture_dir) for run in runs]
-        for future in as_completed(futures):
-            yield future.result()
-    finally:  # on Ctrl-C or an error, drop the runs not started instead of playing them unrecorded
-        pool.shutdown(wait=True, cancel_futures=True)

@@ -17,7 +17,7 @@ from typing import Callable
 
 import numpy as np
 
-from uavform_env.evaluation.table import UNITS, bootstrap_ci
+from uavform_env.evaluation.table import UNITS, bootstrap_ci, ci_cell
 from uavform_env.files import atomic_write_bytes, atomic_write_json, atomic_write_text
 from uavform_env.metrics import METRIC_NAMES
 
@@ -424,12 +424,6 @@ def write_figures(records: list[dict], out: Path) -> dict[str, str]:
 
 
 # ------------------------------------------------------------------------------------------------ markdown
-def _cell(stat: dict) -> str:
-    if math.isnan(stat["mean"]):
-        return "n/a"
-    return f"{stat['mean']:.3g} [{stat['ci_low']:.3g}, {stat['ci_high']:.3g}]"
-
-
 def _label(metric: str) -> str:
     if metric == "separation_kept":
         return f"d_uu >= {R_UU} m (share)"
@@ -490,7 +484,7 @@ def _table(exp: str, rows: dict) -> list[str]:
     for setting, variants in rows.items():
         for variant, row in variants.items():
             runs = f"{row['runs']}" + (f" ({row['failed']} failed)" if row["failed"] else "")
-            lines.append(f"| {setting} | {variant} | {runs} | " + " | ".join(_cell(row[m]) for m in metrics) + " |")
+            lines.append(f"| {setting} | {variant} | {runs} | " + " | ".join(ci_cell(row[m]) for m in metrics) + " |")
     return lines
 
 

@@ -16,12 +16,10 @@ import os
 import subprocess
 import time
 import traceback
-import warnings
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from multiprocessing import get_context
 from pathlib import Path
 
-from ..files import append_line, atomic_write_json
+from ..files import append_line, atomic_write_json, read_jsonl, set_aside_torn_line
+from ..parallel import imap_unordered
 from .suites import Episode, Suite
 
 RESULTS_FILE = "results.jsonl"
@@ -100,32 +98,9 @@ def check_policies(specs: list[str]) -> None:
 
 
 def read_results(out: str | os.PathLike) -> list[dict]:
-    """The records of ``out/results.jsonl``; a corrupt line raises ValueError naming it.
-
-    The one exception is a final line without its newline: the torn write of a killed run, which
-    is skipped with a warning (``prepare_folder`` sets it aside before a resumed run appends).
-    """
-    path = Path(out) / RESULTS_FILE
-    if not path.exists():
-        return []
-    text = path.read_text(encoding="utf-8")
-    lines = text.split("\n")
-    torn = lines.pop()  # "" when the file ends with a newline
-    if torn:
-        warnings.warn(f"{path}: ignoring a torn last line (an interrupted write): {torn[:80]!r}", stacklevel=2)
-    records = []
-    for number, line in enumerate(lines, 1):
-        if not line.strip():
-            continue
-        try:
-            record = json.loads(line)
-            if not isinstance(record, dict) or not {"episode", "policy", "status", "suite_hash"} <= set(record):
-                raise ValueError("missing the keys episode, policy, status, suite_hash")
-        except ValueError as e:
-            raise ValueError(f"{path}, line {number}: corrupt results line ({e}); fix or remove that line "
-                             "(nothing was changed)") from e
-        records.append(record)
-    return records
+    """The records of ``out/results.jsonl`` (see ``files.read_jsonl``: a torn last line is skipped)."""
+    return read_jsonl(Path(out) / RESULTS_FILE, "results line",
+                      frozenset({"episode", "policy", "status", "suite_hash"}))
 
 
 def read_manifest(out: str | os.PathLike) -> dict | None:
@@ -159,23 +134,8 @@ def prepare_folder(suite: Suite, out: str | os.PathLike, resume: bool) -> set[tu
                          "continue it (finished episodes are skipped) or choose another --out")
     if manifest is None:
         atomic_write_json(out / MANIFEST_FILE, suite.manifest())
-    _set_aside_torn_line(out / RESULTS_FILE)
+    set_aside_torn_line(out / RESULTS_FILE)
     return {(r["episode"], r["policy"]) for r in records}
-
-
-def _set_aside_torn_line(path: Path) -> None:
-    """Move a torn final line (no newline) to ``results.jsonl.torn`` so appended lines stay whole."""
-    if not path.exists():
-        return
-    data = path.read_bytes()
-    cut = data.rfind(b"\n") + 1
-    if cut == len(data):
-        return
-    append_line(path.with_name(path.name + ".torn"), data[cut:].decode("utf-8", "replace"))
-    with open(path, "r+b") as f:
-        f.truncate(cut)
-        f.flush()
-        os.fsync(f.fileno())
 
 
 def run_suite(suite: Suite, policies: list[str], out: str | os.PathLike, *, workers: int = 1,
@@ -225,17 +185,8 @@ def _execute(calls: list[tuple], workers: int, backend: str):
         return
     if backend == "ray":
         yield from _execute_ray(calls, workers)
-    elif workers == 1:
-        for call in calls:
-            yield play(*call)
     else:
-        pool = ProcessPoolExecutor(max_workers=min(workers, len(calls)), mp_context=get_context("spawn"))
-        try:
-            futures = [pool.submit(play, *call) for call in calls]
-            for future in as_completed(futures):
-                yield future.result()
-        finally:  # on Ctrl-C or an error, drop the episodes not started instead of playing them unrecorded
-            pool.shutdown(wait=True, cancel_futures=True)
+        yield from imap_unordered(play, calls, workers)
 
 
 def _execute_ray(calls: list[tuple], workers: int):

@@ -98,7 +98,8 @@ def _score_key(row: dict) -> tuple:
     return (*ranking_key({m: row["metrics"][m]["mean"] for m, _ in RANKING}), row["policy"])
 
 
-def _cell(stat: dict) -> str:
+def ci_cell(stat: dict) -> str:
+    """A table cell: mean [95% CI], or n/a for an unknown value."""
     if math.isnan(stat["mean"]):
         return "n/a"
     return f"{stat['mean']:.3g} [{stat['ci_low']:.3g}, {stat['ci_high']:.3g}]"
@@ -124,12 +125,12 @@ def to_markdown(summary: dict) -> str:
     lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for r in summary["policies"]:
         cells = [str(r["rank"]), f"`{r['policy']}`", str(r["episodes"]), str(r["failed"]),
-                 *(_cell(r["metrics"][m]) for m in ranked)]
+                 *(ci_cell(r["metrics"][m]) for m in ranked)]
         lines.append("| " + " | ".join(cells) + " |")
     names = " | ".join(f"`{r['policy']}`" for r in summary["policies"])
     lines += ["", "## All metrics", "", f"| metric | {names} |", "|" + "---|" * (len(summary["policies"]) + 1)]
     for m in METRIC_NAMES:
-        lines.append(f"| {_label(m)} | " + " | ".join(_cell(r["metrics"][m]) for r in summary["policies"]) + " |")
+        lines.append(f"| {_label(m)} | " + " | ".join(ci_cell(r["metrics"][m]) for r in summary["policies"]) + " |")
     return "\n".join(lines) + "\n"
 
 
