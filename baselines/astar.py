@@ -495,7 +495,7 @@ class GlobalPath:
 
 def plan_path(blocked_world, raster: Raster, start_xy, goal_xy, inflate_radius: float,
               cfg: AStarConfig = AStarConfig()) -> GlobalPath | None:
-    """Inflate, snap a blocked start/goal to the nearest free cell, search, optionally prune.
+    """Inflate, snap a blocked start/goal to the nearest free cell, search, optionally prune (and resample).
 
     Returns the path through metric cell centres, or None when no path exists (the leader then
     uses the goal itself as P_LA, spec (d2)).
@@ -516,8 +516,28 @@ def plan_path(blocked_world, raster: Raster, start_xy, goal_xy, inflate_radius: 
     result = astar(inflated, start, goal, cfg.heuristic, cfg.weight, cfg.allow_corner_cut)
     if not result.found:
         return None
-    cells = prune_line_of_sight(result.path, inflated, cfg.allow_corner_cut) if cfg.prune else result.path
-    return GlobalPath(raster.to_world(cells), cfg.window, cfg.allow_corner_cut)
+    if not cfg.prune:
+        return GlobalPath(raster.to_world(result.path), cfg.window, cfg.allow_corner_cut)
+    corners = raster.to_world(prune_line_of_sight(result.path, inflated, cfg.allow_corner_cut))
+    return GlobalPath(resample(corners, raster.res), cfg.window, cfg.allow_corner_cut)
+
+
+def resample(points, spacing: float) -> np.ndarray:
+    """The polyline through ``points`` with nodes at most ``spacing`` apart (every corner kept).
+
+    A pruned path has nodes only at its corners, many metres apart; the node-based progress index and
+    lookahead of (d4) need them evenly spaced, or the progress jumps to a far corner and the lookahead
+    aims through the obstacle the corner goes around.
+    """
+    p = np.asarray(points, dtype=np.float64)
+    _check_range("resample", "spacing", spacing, 0.0, None, lo_open=True)
+    if len(p) < 2:
+        return p.copy()
+    seg = np.diff(p, axis=0)
+    n = np.maximum(1, np.ceil(np.hypot(seg[:, 0], seg[:, 1]) / spacing - 1e-9).astype(np.int64))
+    which = np.repeat(np.arange(len(seg)), n)
+    frac = (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(n, n)
+    return np.vstack([p[which] + frac[:, None] * seg[which], p[-1:]])
 
 
 def replan_trigger(path: GlobalPath | None, pos_xy, blocked_inflated, raster: Raster, t_since_plan: float,

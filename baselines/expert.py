@@ -28,6 +28,7 @@ from .vfh3d import VFHConfig, VFHState, open_cells, vfh3d_step
 LEVEL, CLIMB, BLOCKED = "level", "climb", "blocked"
 WEIGHT_NAMES = ("alpha0", "beta", "gamma", "eps0", "k1", "k2", "k3")
 ASTAR_LAYERS = ("passable", "band")
+REJOIN_MODES = ("astar", "trail")
 
 
 @dataclass(frozen=True)
@@ -51,17 +52,27 @@ class ExpertConfig(_Config):
                        place toward its target when that lies more than this far off its nose and at least
                        e_f / 2 away; DWA's rotation cost and sum-normalised heading term otherwise hold it at
                        rest there (w = 0 wins at v = 0) [X]
+    dock_radius        the leader, within this distance of the goal with the goal more than ``dock_turn_angle`` off
+                       its nose, brakes and turns in place toward it: DWA otherwise flies past a goal abeam at
+                       0.5 m and parks against whatever lies beyond (the world's bound) [X]
     e0, e1, min_leader_scale  leader formation feedback of (g2): its speed cap scales from 1 at a mean follower
                        error e0 down to min_leader_scale at e1 [D: the spec's 1 m, 3 m, 0.3 held a forest
                        formation, which is always stretched, at 0.24 m/s]
     vfh_neighbour_radius  neighbours closer than this become 3D VFH+ pseudo-voxels (g6); farther ones are
                        left to DWA, so the formation's own members do not close the level gaps [X]
+    level_line         LEVEL also when the straight segment to the target point keeps r_uav + r_safe + a voxel's
+                       half-diagonal from every occupied voxel of the own map: 3D VFH+'s enlargement closes
+                       passages DWA flies through (a 2.5 m corridor's mouth read as blocked, and the UAV climbed
+                       the corridor wall) [X]
     level_window       LEVEL also when an open level cell lies within this angle of the target azimuth:
                        DWA detours horizontally rather than climbing over what it can fly around [X]
     geofence_spacing   the world's x/y bounds enter DWA as walls of points this far apart [X]
-    rejoin_distance    a follower farther than this from its slot rejoins by following the leader's broadcast
-                       trail (points ``trail_spacing`` apart, progress searched ``trail_window`` points ahead),
-                       heading for the trail's lookahead point, in single file through clutter [X]
+    rejoin_distance, rejoin  a follower farther than this from its slot rejoins along a path: ``"astar"``, an A*
+                       path to the slot on its own map (the leader's raster and (d5) triggers, plus a replan when
+                       the slot has moved ``astar.d_replan`` from the planned goal); ``"trail"``, the leader's
+                       broadcast trail (points ``trail_spacing`` apart, progress searched ``trail_window`` points
+                       ahead), in single file through clutter. A follower heading straight for a slot behind a
+                       wall slides along it (3D VFH+ offers only the ways along the face) [X]
     arrive_radius      the leader stops once this close to the goal (horizontally) and holds there for the rest
                        of the mission (the DWA stopping rule of (b10)); the default DWA's approach speed
                        profile brakes to rest 0.1 m from the goal (``dwa.r_goal``, inside ``arrive_radius``):
@@ -79,6 +90,10 @@ class ExpertConfig(_Config):
                        at most ``k_z`` times the altitude error: the 5-degree elevation cells never give 0,
                        so a follower parked at its slot (target ~1 m away) otherwise oscillates +/- 1 m
                        around the slot altitude and never closes the formation [X]
+    lateral_emergency_to_dwa  an emergency of (g5) (a voxel inside 3D VFH+'s r_e) whose nearest voxel lies more
+                       beside the UAV than above or below it is left to DWA, whose admissibility keeps the
+                       clearance: the spec's stop-and-climb away from it never ends beside a floor-to-ceiling
+                       wall (a follower froze at a corridor's mouth) [X]
     park_turn          the parked leader turns in place (v = 0) to the heading nearest its own whose follower
                        slots are all free in its own map and inside the world bounds: parked at the goal, it
                        can otherwise leave a slot inside an obstacle, and the formation can never close [X]
@@ -97,6 +112,7 @@ class ExpertConfig(_Config):
     k_f: float = 0.5
     leader_stopped_speed: float = 0.05
     dock_turn_angle: float = math.radians(45.0)
+    dock_radius: float = 1.5
     k_h: float = 1.0
     k_z: float = 0.5
     leader_speed_cap: float = 0.8
@@ -110,8 +126,10 @@ class ExpertConfig(_Config):
     column_hold: float = 3.0
     vfh_neighbour_radius: float = 2.0
     level_window: float = math.radians(30.0)
+    level_line: bool = True
     geofence_spacing: float = 0.4
     rejoin_distance: float = 4.0
+    rejoin: str = "astar"
     trail_spacing: float = 0.25
     trail_window: int = 400
     arrive_radius: float = 0.3
@@ -123,21 +141,25 @@ class ExpertConfig(_Config):
     gap_speed: float = 0.3
     climb_target_limit: bool = True
     park_turn: bool = True
+    lateral_emergency_to_dwa: bool = True
 
     def __post_init__(self):
         o = "ExpertConfig"
         for name, cls in (("dwa", DWAConfig), ("vfh", VFHConfig), ("astar", AStarConfig)):
             if not isinstance(getattr(self, name), cls):
                 raise ValueError(f"{o}.{name}: expected a {cls.__name__}")
-        for name in ("use_vfh", "neighbour_prediction", "shape_switching", "climb_target_limit", "park_turn"):
+        for name in ("use_vfh", "neighbour_prediction", "shape_switching", "climb_target_limit", "park_turn",
+                     "lateral_emergency_to_dwa", "level_line"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{o}.{name}={getattr(self, name)!r}: expected a bool")
         _check_choice(o, "astar_layer", self.astar_layer, ASTAR_LAYERS)
+        _check_choice(o, "rejoin", self.rejoin, REJOIN_MODES)
         _check_int(o, "dwa_map_level", self.dwa_map_level, 0, 4)
         _check_int(o, "debounce", self.debounce, 1, 100)
         _check_int(o, "trail_window", self.trail_window, 1)
         for name in ("replan_check_period", "k_f", "k_h", "k_z", "T_stuck", "climb_lookahead", "column_hold",
-                     "vfh_neighbour_radius", "rejoin_distance", "trail_spacing", "arrive_radius", "stuck_window",
+                     "vfh_neighbour_radius", "rejoin_distance", "dock_radius", "trail_spacing", "arrive_radius",
+                     "stuck_window",
                      "gap_lookahead", "gap_depth", "gap_margin",
                      "k_gap", "gap_speed", "leader_stopped_speed"):
             _check_range(o, name, getattr(self, name), 0.0, None)
@@ -183,6 +205,7 @@ class _UAVMemory:
     column_until: float = -1.0
     path: GlobalPath | None = None
     path_found: bool = True
+    plan_goal: np.ndarray | None = None
     last_plan_time: float = -1e9
     last_check_time: float = -1e9
     replans: int = 0
@@ -276,7 +299,9 @@ class FusionExpert(OnboardPolicy):
             vfh_result = vfh3d_step(mem.vfh, cfg.vfh, lim, pos, s[PSI], s[V], s[VZ], target - pos, centres, probs,
                                     view.occupancy.resolution, movers_pos[close])
             emergency = vfh_result.emergency
-            level_way = _level_way(vfh_result, cfg, target - pos)
+            level_way = _level_way(vfh_result, cfg, target - pos) or (
+                cfg.level_line and _segment_clear(centres, pos, target, lim.r_uav + lim.r_safe
+                                                  + view.occupancy.resolution * math.sqrt(3.0) / 2.0))
             mode = self._debounced_mode(mem, vfh_result, cfg, level_way, gap_z is not None)
             if mode == CLIMB and gap_z is not None:
                 vz_cmd = float(np.clip(cfg.k_gap * (gap_z - pos[2]), -lim.vz_max, lim.vz_max))
@@ -320,15 +345,19 @@ class FusionExpert(OnboardPolicy):
                 vz_cmd = _vertical_escape(vfh_result, lim)
         else:
             mem.stuck_time = 0.0
-        to_goal = goal - pos[:2]
-        if (not view.is_leader and view.leader_state[V] < cfg.leader_stopped_speed and s[V] < cfg.leader_stopped_speed
-                and np.linalg.norm(to_goal) >= view.config.formation.e_f / 2
-                and abs(_bearing_error(s, to_goal)) > cfg.dock_turn_angle):
+        to_goal = (view.goal[:2] if view.is_leader else goal) - pos[:2]
+        if view.is_leader:
+            docking = np.linalg.norm(to_goal) < cfg.dock_radius
+        else:
+            docking = (view.leader_state[V] < cfg.leader_stopped_speed and s[V] < cfg.leader_stopped_speed
+                       and np.linalg.norm(to_goal) >= view.config.formation.e_f / 2)
+        if docking and abs(_bearing_error(s, to_goal)) > cfg.dock_turn_angle:
             v_c = 0.0                                           # turn in place toward a parked slot
             w_c = float(np.clip(_bearing_error(s, to_goal), -lim.w_max, lim.w_max))
-        if emergency and vfh_result is not None:
-            v_c = 0.0
-            vz_cmd = _away_vertically(pos, view.occupancy, cfg.vfh.R_w, lim)
+        vz_away = _away_vertically(pos, view.occupancy, cfg.vfh.R_w, lim, cfg.lateral_emergency_to_dwa) \
+            if emergency and vfh_result is not None else None
+        if vz_away is not None:
+            v_c, vz_cmd = 0.0, vz_away
             alive = view.neighbour_alive
             if _closes_on_movers(pos, vz_cmd, movers_pos[alive], movers_vel[alive], cfg.dwa, lim):
                 vz_cmd = 0.0                    # the escape would fly into a neighbour (above or below)
@@ -373,7 +402,7 @@ class FusionExpert(OnboardPolicy):
         if mem.replans == 0 or t - mem.last_check_time >= cfg.replan_check_period:
             mem.last_check_time = t
             blocked = self._blocked_raster(view, cfg)
-            if mem.replans == 0 or mem.path is None:
+            if mem.replans == 0 or mem.path is None or np.linalg.norm(goal_xy - mem.plan_goal) > cfg.astar.d_replan:
                 self._plan(view, mem, t, goal_xy, blocked)
             else:
                 inflated = inflate(blocked, lim.r_uav + lim.r_safe, self.raster.res)
@@ -392,7 +421,7 @@ class FusionExpert(OnboardPolicy):
             blocked = self._blocked_raster(view, cfg)
         path = plan_path(blocked, self.raster, np.clip(view.state[:2], *self._raster_box()),
                          np.clip(goal_xy, *self._raster_box()), lim.r_uav + lim.r_safe, cfg.astar)
-        mem.path, mem.path_found = path, path is not None
+        mem.path, mem.path_found, mem.plan_goal = path, path is not None, np.array(goal_xy, dtype=np.float64)
         mem.last_plan_time = t
         mem.replans += 1
         return path
@@ -403,7 +432,7 @@ class FusionExpert(OnboardPolicy):
         return lo, hi
 
     def _blocked_raster(self, view, cfg: ExpertConfig) -> np.ndarray:
-        """The leader's 2D raster: its own map's occupied voxels, plus the prior map, per ``astar_layer``."""
+        """A UAV's 2D raster: its map's occupied voxels, the world bounds and the prior map (``astar_layer``)."""
         lim = view.limits
         h_b = lim.r_uav + lim.r_safe
         occ_map = view.occupancy
@@ -413,8 +442,9 @@ class FusionExpert(OnboardPolicy):
         if cfg.astar_layer == "band":
             columns = centres[np.abs(centres[:, 2] - view.z_ref) <= h_b + res / 2, :2]
         else:
-            columns = _columns_without_gap(centres, res, lim.z_min, lim.z_max, 2 * h_b + res)
+            columns = _columns_without_gap(occ_map, centres, lim.z_min, lim.z_max, 2 * h_b + res)
         blocked = np.zeros(self.raster.shape, bool)
+        blocked[[0, -1], :] = blocked[:, [0, -1]] = True       # the world's x/y bounds are walls (geofence)
         _mark(blocked, self.raster, columns)
         prior = view.prior
         if prior.kind != "none":
@@ -444,7 +474,14 @@ class FusionExpert(OnboardPolicy):
         trail = mem.trail
         if not trail or np.hypot(*(lead[:2] - trail[-1])) >= cfg.trail_spacing:
             trail.append(lead[:2].copy())
-        if np.linalg.norm(slot_now - view.state[:2]) > cfg.rejoin_distance and len(trail) > 1:
+        far = np.linalg.norm(slot_now - view.state[:2]) > cfg.rejoin_distance
+        if far and cfg.rejoin == "astar":
+            guide = self._guidance(view, mem, cfg, t, slot_now)
+            if guide is not None:
+                return guide, guide, None, None
+        elif not far:
+            mem.last_check_time = -math.inf                     # re-entering the rejoin checks the path at once
+        if far and cfg.rejoin == "trail" and len(trail) > 1:
             # Far from the slot: rejoin along the leader's broadcast trail, which the leader has flown.
             path = GlobalPath(np.asarray(trail), window=cfg.trail_window)
             path.progress = min(mem.trail_progress, len(trail) - 1)
@@ -526,31 +563,33 @@ def _mark(blocked: np.ndarray, raster: Raster, xy: np.ndarray) -> None:
     blocked[cells[ok, 0], cells[ok, 1]] = True
 
 
-def _columns_without_gap(centres: np.ndarray, res: float, z_min: float, z_max: float, gap: float) -> np.ndarray:
-    """x, y of the map columns whose occupied voxels leave no free run of height >= ``gap`` in [z_min, z_max].
+def _columns_without_gap(occ_map, centres: np.ndarray, z_min: float, z_max: float, gap: float) -> np.ndarray:
+    """x, y of the map columns holding an occupied voxel in [z_min, z_max] but no way through there: a run
+    of non-occupied voxels of height >= ``gap`` of which at least one voxel is known free.
 
-    Works on the occupied-voxel list (unknown counts as free), sorted by column and height, so it
-    costs O(occupied voxels) instead of a pass over the dense grid.
+    A run of unknown voxels alone is not a way: a wall whose top the UAV has not seen is a wall (that
+    optimism sent followers along a corridor's wall into the world's corners); one ray through the
+    run (over a low wall, through a gap) is enough. Only the columns of the occupied voxels
+    ``centres`` are read, so the cost follows the obstacles, not the map.
     """
+    res = occ_map.resolution
     inside = (centres[:, 2] >= z_min - res) & (centres[:, 2] <= z_max + res)
-    c = centres[inside]
-    if len(c) == 0:
+    if not inside.any():
         return np.empty((0, 2))
-    key = np.round(c[:, :2] / res).astype(np.int64)
-    order = np.lexsort((c[:, 2], key[:, 1], key[:, 0]))
-    c, key = c[order], key[order]
-    new_col = np.ones(len(c), bool)
-    new_col[1:] = np.any(key[1:] != key[:-1], axis=1)
-    starts = np.flatnonzero(new_col)
-    ends = np.append(starts[1:], len(c)) - 1
-    bottom = c[:, 2] - res / 2
-    top = c[:, 2] + res / 2
-    gaps = np.empty(len(c))                      # free run below each voxel, down to the previous one or z_min
-    gaps[1:] = bottom[1:] - top[:-1]
-    gaps[starts] = bottom[starts] - z_min
-    best = np.maximum.reduceat(gaps, starts)
-    best = np.maximum(best, z_max - top[ends])   # the run above the highest voxel
-    return c[starts[best < gap], :2]
+    ij = np.unique(np.floor((centres[inside, :2] - occ_map.origin[:2]) / res).astype(np.int64), axis=0)
+    k_lo = max(0, int(math.ceil((z_min - occ_map.origin[2]) / res - 0.5)))
+    k_hi = min(occ_map.shape[2], int(math.floor((z_max - occ_map.origin[2]) / res - 0.5)) + 1)
+    l_occ = occ_map.cfg.logodds(occ_map.cfg.p_occ)
+    cols = occ_map.logodds[ij[:, 0], ij[:, 1], k_lo:k_hi]
+    occupied = cols >= l_occ                                            # NaN (unknown) compares False
+    n_z = cols.shape[1]
+    run = np.cumsum(occupied, axis=1) + np.arange(len(cols))[:, None] * (n_z + 1)   # one id per run and column
+    open_ = ~occupied
+    length = np.bincount(run[open_], minlength=len(cols) * (n_z + 1))
+    seen = np.bincount(run[open_], weights=(cols < l_occ)[open_], minlength=len(cols) * (n_z + 1))
+    way = (length * res >= gap - 1e-9) & (seen > 0)
+    blocked = ~way.reshape(len(cols), n_z + 1).any(axis=1)
+    return occ_map.origin[:2] + (ij[blocked] + 0.5) * res
 
 
 def _level_way(r, cfg: ExpertConfig, target_dir: np.ndarray) -> bool:
@@ -564,6 +603,16 @@ def _level_way(r, cfg: ExpertConfig, target_dir: np.ndarray) -> bool:
     azimuths = (np.arange(n_z) + 0.5) * cfg.vfh.alpha_h
     off = np.abs((azimuths - math.atan2(target_dir[1], target_dir[0]) + math.pi) % (2 * math.pi) - math.pi)
     return bool(np.any(level & (off <= cfg.level_window)))
+
+
+def _segment_clear(centres: np.ndarray, a: np.ndarray, b: np.ndarray, clearance: float) -> bool:
+    """Whether every voxel centre lies farther than ``clearance`` from the segment a-b (3D)."""
+    if len(centres) == 0:
+        return True
+    ab = b - a
+    t = np.clip((centres - a) @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0)
+    d2 = np.sum((a + t[:, None] * ab - centres) ** 2, axis=1)
+    return bool(d2.min() > clearance * clearance)
 
 
 def _gap_altitude(view, target_xy, z_pref: float, cfg: ExpertConfig) -> float | None:
@@ -747,11 +796,15 @@ def _closes_on_movers(pos, vz: float, movers_pos, movers_vel, dwa: DWAConfig, li
     return bool(np.linalg.norm(rel, axis=2).min() < dwa.R_uu)
 
 
-def _away_vertically(pos, occ_map, radius, lim) -> float:
+def _away_vertically(pos, occ_map, radius, lim, lateral_to_dwa: bool) -> float | None:
+    """The emergency escape of (g5): full vertical speed away from the nearest voxel; None (no escape, DWA
+    acts) when ``lateral_to_dwa`` and that voxel lies more beside the UAV than above or below it."""
     centres, _ = occ_map.occupied_in_sphere(pos, radius)
     if len(centres) == 0:
         return 0.0
     nearest = centres[np.argmin(np.sum((centres - pos) ** 2, axis=1))]
+    if lateral_to_dwa and abs(nearest[2] - pos[2]) < math.hypot(*(nearest[:2] - pos[:2])):
+        return None
     return -lim.vz_max if nearest[2] > pos[2] else lim.vz_max
 
 

@@ -1,9 +1,9 @@
 """Success / collision table of the fusion expert over a scenario x seed grid.
 
-    python benchmarks/expert_success.py [--scenarios forest corridor ...] [--seeds 0 1 2] [--n 5]
+    python benchmarks/expert_success.py [--scenarios forest corridor ...] [--seeds 0 1 2] [--n N]
                                         [--workers 1] [--max-steps 3000] [--policy expert]
 
-One episode per (scenario, seed) at the scenario's default size; at most ``--workers`` processes
+One episode per (scenario, seed) at the scenario's default size (``--n`` overrides it); at most ``--workers`` processes
 (1-2: the machine is shared). Prints one row per scenario (S = success, C = collision, . = time-out
 per seed) and the wall time, so the number in docs and issues is reproducible.
 """
@@ -24,7 +24,8 @@ def fly(job):
     from uavform_env.rollout import run_episode
 
     t0 = time.perf_counter()
-    penv = parallel_env(scenario=scenario, n_uavs=n, max_cycles=max_steps)
+    size = {} if n is None else {"n_uavs": n}
+    penv = parallel_env(scenario=scenario, max_cycles=max_steps, **size)
     metrics = run_episode(penv, load_policy(policy_name), seed)
     return scenario, seed, bool(metrics["success"]), bool(metrics["collision"]), time.perf_counter() - t0
 
@@ -33,7 +34,7 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scenarios", nargs="+", default=list(SCENARIOS))
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
-    p.add_argument("--n", type=int, default=5)
+    p.add_argument("--n", type=int, default=None, help="UAVs per episode (default: each scenario's default size)")
     p.add_argument("--max-steps", type=int, default=3000)
     p.add_argument("--workers", type=int, default=1, choices=(1, 2))
     p.add_argument("--policy", default="expert")
@@ -46,7 +47,7 @@ def main(argv=None) -> int:
             results[scenario, seed] = (ok, crash)
             print(f"  {scenario:<11} seed {seed}: {'SUCCESS' if ok else 'COLLISION' if crash else 'time-out'}"
                   f" ({secs:.0f} s)", flush=True)
-    print(f"\n{a.policy}, {a.n} UAVs, seeds {a.seeds}, max {a.max_steps} steps")
+    print(f"\n{a.policy}, {a.n or 'default'} UAVs, seeds {a.seeds}, max {a.max_steps} steps")
     print(f"{'scenario':<11} {'per seed':<{max(8, len(a.seeds))}} success collisions")
     tot_ok = tot_c = 0
     for s in a.scenarios:

@@ -15,7 +15,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from baselines.astar import (AStarConfig, GlobalPath, Raster, _segment_free, astar, inflate, needs_replan,
-                             plan_path, prune_line_of_sight, replan_trigger, snap_to_free)
+                             plan_path, prune_line_of_sight, replan_trigger, resample, snap_to_free)
 from uavform_env.config import UAVLimits
 
 MOVES = [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)]
@@ -403,7 +403,21 @@ def test_plan_path_snaps_blocked_endpoints_and_reports_no_path():
     with pytest.raises(ValueError, match="blocked_world"):
         plan_path(world[:5], raster, (0.5, 0.5), (9.5, 9.5), 0.0, cfg)
     pruned = plan_path(np.zeros((10, 10), dtype=bool), raster, (0.5, 0.5), (9.5, 6.5), 0.0, cfg.replace(prune=True))
-    assert pruned.points.tolist() == [[0.5, 0.5], [9.5, 6.5]]
+    # one straight segment after pruning, resampled at the raster resolution (11 steps of 0.99 m)
+    assert pruned.points.tolist()[0] == [0.5, 0.5] and pruned.points.tolist()[-1] == [9.5, 6.5]
+    assert len(pruned.points) == 12 and pruned.length == pytest.approx(math.hypot(9.0, 6.0))
+    np.testing.assert_allclose(np.diff(pruned.points, axis=0), [[9.0 / 11, 6.0 / 11]] * 11)
+
+
+def test_resample_keeps_corners_and_bounds_spacing():
+    pts = np.array([[0.0, 0.0], [3.0, 0.0], [3.0, 1.0], [3.0, 1.0]])
+    out = resample(pts, 1.0)
+    assert out.tolist() == [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0], [3.0, 1.0], [3.0, 1.0]]
+    dense = resample(np.array([[0.0, 0.0], [2.5, 2.5]]), 0.5)
+    assert np.all(np.hypot(*np.diff(dense, axis=0).T) <= 0.5 + 1e-12) and dense[-1].tolist() == [2.5, 2.5]
+    assert resample(pts[:1], 1.0).tolist() == [[0.0, 0.0]]
+    with pytest.raises(ValueError, match="spacing"):
+        resample(pts, 0.0)
 
 
 # ---------------------------------------------------------------------------------------------
