@@ -19,7 +19,7 @@ from scipy import ndimage
 from uavform_env.config import _check_choice, _check_int, _check_range, _Config
 
 HEURISTICS = ("octile", "euclidean")
-HEADING_TARGETS = ("goal", "lookahead")
+HEADING_TARGETS = ("goal", "lookahead", "visible_goal")
 SQRT2 = math.sqrt(2.0)
 
 
@@ -118,7 +118,9 @@ class AStarConfig(_Config):
     window         progress search covers the progress node and the next `window` nodes (d4) [X]
     d_replan       replan when the UAV is farther than this from the path, metres (d5) [X]
     replan_period  replan at most this often (s) while new map data arrives (d5) [X]
-    heading_target DWA heads for the true goal ("goal", paper) or for P_LA ("lookahead") (d6) [X]
+    heading_target DWA heads for the true goal ("goal", paper), for P_LA ("lookahead"), or for the goal while the
+                   straight segment to it is free in the inflated raster and for P_LA otherwise
+                   ("visible_goal": the paper in the open, no U-trap behind a known wall) (d6) [X]
     """
 
     res_g: float = 0.5

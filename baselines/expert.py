@@ -52,6 +52,13 @@ class ExpertConfig(_Config):
                        place toward its target when that lies more than this far off its nose and at least
                        e_f / 2 away; DWA's rotation cost and sum-normalised heading term otherwise hold it at
                        rest there (w = 0 wins at v = 0) [X]
+    pursuit_speed_cap  cap the speed at w_max / kappa, kappa = 2 sin(theta) / d the pure-pursuit curvature onto the
+                       lookahead point (distance d, bearing theta off the nose; d / 2 beyond 90 degrees): the
+                       turn-rate limit then lets the UAV steer onto the point instead of overshooting a corner
+                       of its path (a leader passed a wall's opening 0.5 m/s too fast and followed the wall) [X]
+    reverse_turn_angle  a UAV steering by a path's lookahead point (the leader; a rejoining follower) turns in place
+                       when that point lies more than this far off its nose: DWA turns through a wide circle
+                       (a follower circled a whole wall's side to reach a point behind it) [X]
     dock_radius        the leader, within this distance of the goal with the goal more than ``dock_turn_angle`` off
                        its nose, brakes and turns in place toward it: DWA otherwise flies past a goal abeam at
                        0.5 m and parks against whatever lies beyond (the world's bound) [X]
@@ -73,6 +80,8 @@ class ExpertConfig(_Config):
                        broadcast trail (points ``trail_spacing`` apart, progress searched ``trail_window`` points
                        ahead), in single file through clutter. A follower heading straight for a slot behind a
                        wall slides along it (3D VFH+ offers only the ways along the face) [X]
+    rejoin_hidden      also rejoin when the straight segment to the slot passes within r_uav + a voxel's half-diagonal
+                       of an occupied voxel of the own map (the slot is behind an obstacle, however near) [X]
     arrive_radius      the leader stops once this close to the goal (horizontally) and holds there for the rest
                        of the mission (the DWA stopping rule of (b10)); the default DWA's approach speed
                        profile brakes to rest 0.1 m from the goal (``dwa.r_goal``, inside ``arrive_radius``):
@@ -102,7 +111,7 @@ class ExpertConfig(_Config):
     dwa: DWAConfig = field(default_factory=lambda: DWAConfig.ablation("IDWA", approach_speed_profile=True,
                                                                                       r_goal=0.1, dist_cap=0.5))
     vfh: VFHConfig = field(default_factory=VFHConfig)
-    astar: AStarConfig = field(default_factory=lambda: AStarConfig(prune=True))
+    astar: AStarConfig = field(default_factory=lambda: AStarConfig(prune=True, heading_target="visible_goal"))
     use_vfh: bool = True
     neighbour_prediction: bool = True
     shape_switching: bool = True
@@ -113,6 +122,8 @@ class ExpertConfig(_Config):
     leader_stopped_speed: float = 0.05
     dock_turn_angle: float = math.radians(45.0)
     dock_radius: float = 1.5
+    reverse_turn_angle: float = math.radians(100.0)
+    pursuit_speed_cap: bool = True
     k_h: float = 1.0
     k_z: float = 0.5
     leader_speed_cap: float = 0.8
@@ -130,6 +141,7 @@ class ExpertConfig(_Config):
     geofence_spacing: float = 0.4
     rejoin_distance: float = 4.0
     rejoin: str = "astar"
+    rejoin_hidden: bool = True
     trail_spacing: float = 0.25
     trail_window: int = 400
     arrive_radius: float = 0.3
@@ -149,7 +161,8 @@ class ExpertConfig(_Config):
             if not isinstance(getattr(self, name), cls):
                 raise ValueError(f"{o}.{name}: expected a {cls.__name__}")
         for name in ("use_vfh", "neighbour_prediction", "shape_switching", "climb_target_limit", "park_turn",
-                     "lateral_emergency_to_dwa", "level_line"):
+                     "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap",
+                     "rejoin_hidden"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{o}.{name}={getattr(self, name)!r}: expected a bool")
         _check_choice(o, "astar_layer", self.astar_layer, ASTAR_LAYERS)
@@ -168,6 +181,7 @@ class ExpertConfig(_Config):
         _check_range(o, "min_leader_scale", self.min_leader_scale, 0.0, 1.0)
         _check_range(o, "level_window", self.level_window, 0.0, math.pi)
         _check_range(o, "dock_turn_angle", self.dock_turn_angle, 0.0, math.pi)
+        _check_range(o, "reverse_turn_angle", self.reverse_turn_angle, 0.0, math.pi)
         _check_range(o, "geofence_spacing", self.geofence_spacing, 0.05, None)
         _check_range(o, "e0", self.e0, 0.0, None)
         _check_range(o, "e1", self.e1, self.e0, None, lo_open=True)
@@ -206,6 +220,8 @@ class _UAVMemory:
     path: GlobalPath | None = None
     path_found: bool = True
     plan_goal: np.ndarray | None = None
+    goal_visible: bool = True
+    on_path: bool = False
     last_plan_time: float = -1e9
     last_check_time: float = -1e9
     replans: int = 0
@@ -267,6 +283,11 @@ class FusionExpert(OnboardPolicy):
                 psi_park = _park_heading(view, mem, cfg)
                 w_c = float(np.clip(wrap(psi_park - s[PSI]), -lim.w_max, lim.w_max))
             return np.array([0.0, w_c, float(np.clip(cfg.k_z * (z_slot - pos[2]), -lim.vz_max, lim.vz_max))])
+        level = cfg.dwa_map_level
+        vox_size = view.occupancy.resolution * (2 ** level)
+        reach = lim.v_max * cfg.dwa.T_p + cfg.dwa.D_cap + lim.r_uav + vox_size
+        obstacles, _ = view.occupancy.occupied_in_sphere(pos, reach, level=level)
+        radius = vox_size * math.sqrt(3.0) / 2.0
         if view.is_leader:
             goal, lookahead, v_cap, v_ref = self._leader_target(view, mem, cfg, t)
             if goal is None:                                    # unreachable: hold position safely
@@ -274,16 +295,14 @@ class FusionExpert(OnboardPolicy):
                                                 "replans": mem.replans}
                 return np.array([0.0, 0.0, float(np.clip(cfg.k_z * (z_slot - pos[2]), -lim.vz_max, lim.vz_max))])
         else:
-            goal, lookahead, v_cap, v_ref = self._follower_target(view, mem, cfg, t)
+            slot_hidden = not _segment_clear(obstacles, pos, view.slot, lim.r_uav + radius)
+            goal, lookahead, v_cap, v_ref = self._follower_target(view, mem, cfg, t, slot_hidden)
 
+        if cfg.pursuit_speed_cap:
+            v_cap = _pursuit_cap(s, lookahead, lim.w_max, lim.v_max if v_cap is None else v_cap)
         movers_pos, movers_vel = self._neighbours(view, cfg)
         v_cap = self._yield(view, movers_pos, movers_vel, cfg, v_cap)
 
-        level = cfg.dwa_map_level
-        vox_size = view.occupancy.resolution * (2 ** level)
-        reach = lim.v_max * cfg.dwa.T_p + cfg.dwa.D_cap + lim.r_uav + vox_size
-        obstacles, _ = view.occupancy.occupied_in_sphere(pos, reach, level=level)
-        radius = vox_size * math.sqrt(3.0) / 2.0
         fence = _geofence(pos, reach, view.bounds_lo, view.bounds_hi, cfg.geofence_spacing)
 
         vz_cmd = float(np.clip(cfg.k_z * (z_slot - pos[2]), -lim.vz_max, lim.vz_max))
@@ -354,6 +373,9 @@ class FusionExpert(OnboardPolicy):
         if docking and abs(_bearing_error(s, to_goal)) > cfg.dock_turn_angle:
             v_c = 0.0                                           # turn in place toward a parked slot
             w_c = float(np.clip(_bearing_error(s, to_goal), -lim.w_max, lim.w_max))
+        elif mem.on_path and abs(_bearing_error(s, lookahead - pos[:2])) > cfg.reverse_turn_angle:
+            v_c = 0.0                                           # the path doubles back: turn in place
+            w_c = float(np.clip(_bearing_error(s, lookahead - pos[:2]), -lim.w_max, lim.w_max))
         vz_away = _away_vertically(pos, view.occupancy, cfg.vfh.R_w, lim, cfg.lateral_emergency_to_dwa) \
             if emergency and vfh_result is not None else None
         if vz_away is not None:
@@ -384,7 +406,10 @@ class FusionExpert(OnboardPolicy):
         lookahead = self._guidance(view, mem, cfg, t, view.goal[:2])
         if lookahead is None:
             return None, None, None, None
-        goal = lookahead if cfg.astar.heading_target == "lookahead" else view.goal[:2]
+        mem.on_path = True
+        heading_target = cfg.astar.heading_target
+        to_lookahead = heading_target == "lookahead" or (heading_target == "visible_goal" and not mem.goal_visible)
+        goal = lookahead if to_lookahead else view.goal[:2]
         errors = _follower_errors(view)
         scale = 1.0
         if errors.size:
@@ -410,6 +435,8 @@ class FusionExpert(OnboardPolicy):
                                          True, cfg.astar)
                 if trigger is not None:
                     self._plan(view, mem, t, goal_xy, blocked)
+                sight = GlobalPath(np.array([np.clip(pos_xy, *self._raster_box()), np.clip(goal_xy, *self._raster_box())]))
+                mem.goal_visible = not sight.corridor_blocked(inflated, self.raster)
         if not mem.path_found:
             return None
         return mem.path.lookahead(pos_xy, cfg.astar.lookahead)
@@ -453,7 +480,7 @@ class FusionExpert(OnboardPolicy):
             _mark(blocked, self.raster, prior.origin + (cells + 0.5) * prior.resolution)
         return blocked
 
-    def _follower_target(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float):
+    def _follower_target(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float, slot_hidden: bool):
         lim = view.limits
         lead = view.leader_state
         offset = view.slot_offset
@@ -474,10 +501,12 @@ class FusionExpert(OnboardPolicy):
         trail = mem.trail
         if not trail or np.hypot(*(lead[:2] - trail[-1])) >= cfg.trail_spacing:
             trail.append(lead[:2].copy())
-        far = np.linalg.norm(slot_now - view.state[:2]) > cfg.rejoin_distance
+        far = np.linalg.norm(slot_now - view.state[:2]) > cfg.rejoin_distance or (cfg.rejoin_hidden and slot_hidden)
+        mem.on_path = False
         if far and cfg.rejoin == "astar":
             guide = self._guidance(view, mem, cfg, t, slot_now)
             if guide is not None:
+                mem.on_path = True
                 return guide, guide, None, None
         elif not far:
             mem.last_check_time = -math.inf                     # re-entering the rejoin checks the path at once
@@ -488,6 +517,7 @@ class FusionExpert(OnboardPolicy):
             guide = path.lookahead(view.state[:2], cfg.astar.lookahead)
             mem.trail_progress = path.progress
             if path.length - path._arc[path.progress] > cfg.astar.lookahead:   # not yet at the trail's end
+                mem.on_path = True
                 return guide, guide, None, None
         e_par = float((slot_now - view.state[:2]) @ heading_l)
         if lead[V] < cfg.leader_stopped_speed:                  # closing on a parked slot, from any side
@@ -723,6 +753,15 @@ def _follower_errors(view) -> np.ndarray:
 def _bearing_error(state, direction) -> float:
     """Signed angle (rad) from the UAV's heading to the horizontal ``direction``."""
     return wrap(math.atan2(direction[1], direction[0]) - state[PSI])
+
+
+def _pursuit_cap(state, point, w_max: float, v_cap: float) -> float:
+    """``v_cap`` lowered to the speed at which the turn-rate limit still steers onto ``point`` (pure pursuit)."""
+    d = point - state[:2]
+    dist = float(np.hypot(d[0], d[1]))
+    theta = abs(_bearing_error(state, d)) if dist > 1e-9 else 0.0
+    reach = dist / 2.0 if theta >= math.pi / 2 else dist / (2.0 * math.sin(theta)) if theta > 1e-9 else math.inf
+    return min(v_cap, w_max * reach)
 
 
 def _predict_unicycle(state, horizon: float, dt: float):

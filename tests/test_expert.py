@@ -10,9 +10,11 @@ import numpy as np
 import pytest
 from gymnasium import spaces
 
-from baselines.expert import WEIGHT_NAMES, ExpertConfig, FusionExpert, StandardDWA
+from baselines.expert import (WEIGHT_NAMES, ExpertConfig, FusionExpert, StandardDWA, _away_vertically,
+                              _columns_without_gap, _segment_clear)
 from uavform_env import EnvConfig, parallel_env
 from uavform_env.config import UAVLimits
+from uavform_env.occupancy import OccupancyMap
 from uavform_env.scenarios import Mission, Scenario
 from uavform_env.world import Box
 
@@ -318,3 +320,65 @@ def test_standard_dwa_does_not_pass_the_wall_gap():
     assert infos["uav_0"]["success"] == 0 and not penv.unwrapped.crashed.any()
     assert np.all(states[:, 0, 0] < 10.0) and np.all(states[:, 0, 2] == 3.0)
     assert diagnostics[-1]["stuck"]
+
+
+# ----------------------------------------------------------------------------- own-map raster and geometry
+
+
+def column_blocked(occupied_z, free_z) -> bool:
+    """Whether the A* raster blocks one map column whose voxels at ``occupied_z`` were hit and at ``free_z``
+    were crossed by a ray (every other voxel unknown); altitude band 0.5-10 m, way height 1.2 m."""
+    occ = OccupancyMap((0.0, 0.0, 0.0), (3, 1, 60), 0.2)
+    for z in occupied_z:
+        occ.integrate((0.1, 0.1, z), [[0.5, 0.1, z]], np.array([True]))
+    for z in free_z:
+        occ.integrate((0.1, 0.1, z), [[0.7, 0.1, z]], np.array([False]))
+    centres, _ = occ.occupied_in_sphere((0.3, 0.1, 6.0), 10.0)
+    columns = _columns_without_gap(occ, centres, 0.5, 10.0, 1.2)
+    assert len(columns) <= 1 and (len(columns) == 0 or np.allclose(columns[0], (0.5, 0.1)))
+    return len(columns) == 1
+
+
+def test_raster_needs_a_seen_way_through_a_column():
+    wall = np.arange(1.1, 4.6, 0.2)                              # hit from 1.0 m to 4.6 m
+    assert column_blocked(wall, [])                               # unseen top: a wall, not a way over it
+    assert not column_blocked(wall, [6.1])                        # one ray above the top opens 4.6-10 m
+    assert column_blocked(wall, [0.7, 0.9])                       # seen, but 0.5-1.0 m is too low to pass
+    upper = np.arange(5.5, 10.0, 0.2)                             # a second slab from 5.4 m: the gap is 0.8 m
+    assert column_blocked(np.concatenate([wall, upper]), [4.9, 5.1])
+    assert not column_blocked([], [])                              # nothing occupied: no column at all
+
+
+def test_segment_clearance_is_the_distance_to_the_segment():
+    centres = np.array([[1.0, 1.0, 0.0], [5.0, 0.0, 0.0]])
+    a, b = np.zeros(3), np.array([2.0, 0.0, 0.0])
+    assert _segment_clear(centres, a, b, 0.99) and not _segment_clear(centres, a, b, 1.01)   # abeam: 1 m
+    assert not _segment_clear(centres, a, np.array([4.5, 0.0, 0.0]), 0.6)                   # end: 0.5 m
+    assert _segment_clear(np.empty((0, 3)), a, b, 10.0) and _segment_clear(centres, a, a, 1.4)
+
+
+def test_emergency_beside_a_wall_is_left_to_dwa():
+    lim = UAVLimits()
+    occ = OccupancyMap((0.0, 0.0, 0.0), (10, 10, 30), 0.2)
+    occ.integrate((1.0, 1.0, 3.0), [[1.5, 1.0, 3.1]], np.array([True]))   # a voxel 0.5 m beside the UAV
+    pos = np.array([1.0, 1.0, 3.0])
+    assert _away_vertically(pos, occ, 5.0, lim, lateral_to_dwa=True) is None
+    assert _away_vertically(pos, occ, 5.0, lim, lateral_to_dwa=False) == -lim.vz_max   # spec: away from it
+    occ.integrate((1.0, 1.0, 2.9), [[1.0, 1.0, 3.3]], np.array([True]))   # nearer, and above
+    assert _away_vertically(pos, occ, 5.0, lim, lateral_to_dwa=True) == -lim.vz_max
+
+
+def corridor_wall():
+    """A full-height wall 0.6 m thick across the world with a 2.6 m opening on the line from start to goal."""
+    return scenario(obstacles=[Box((10.0, -1.0, 0.0), (10.6, 11.7, 12.0)), Box((10.0, 14.3, 0.0), (10.6, 21.0, 12.0))],
+                    start=(4.0, 13.0, 3.0), goal=(16.0, 13.0, 3.0), hi=(22.0, 20.0, 12.0), n_uavs=3)
+
+
+def test_formation_passes_an_opening_in_single_file():
+    """Followers whose slots lie behind the wall rejoin along A* paths on their own maps, through the opening."""
+    penv, infos, _, states = fly(FusionExpert(), corridor_wall(), 600)
+    assert infos["uav_0"]["success"] == 1 and not penv.unwrapped.crashed.any()
+    in_opening = (states[:, :, 0] > 10.0) & (states[:, :, 0] < 10.6)
+    assert np.all(in_opening.any(axis=0))                              # every UAV went through the opening
+    assert np.all((states[:, :, 1][in_opening] > 11.7) & (states[:, :, 1][in_opening] < 14.3))
+    assert np.all(states[:, :, 0].max(axis=0) < 17.0)                  # no detours past the goal either
