@@ -47,7 +47,8 @@ class ExpertConfig(_Config):
     leader_stopped_speed  below this leader speed a follower's speed reference uses its whole slot error, not
                        the along-track part of (g2), so it closes on a parked slot from the side too, scaled
                        by the cosine of its bearing error (0 beyond 90 degrees): a unicycle that keeps its
-                       speed while its target is abeam orbits the target instead of reaching it [X]
+                       speed while its target is abeam orbits the target instead of reaching it; its target
+                       point is then the slot itself, without the ``k_h`` lead along the leader's heading [X]
     dock_turn_angle    a follower of a parked leader that is itself below ``leader_stopped_speed`` turns in
                        place toward its target when that lies more than this far off its nose and at least
                        e_f / 2 away; DWA's rotation cost and sum-normalised heading term otherwise hold it at
@@ -56,6 +57,11 @@ class ExpertConfig(_Config):
                        lookahead point (distance d, bearing theta off the nose; d / 2 beyond 90 degrees): the
                        turn-rate limit then lets the UAV steer onto the point instead of overshooting a corner
                        of its path (a leader passed a wall's opening 0.5 m/s too fast and followed the wall) [X]
+    final_approach_free  closing on a fixed target (the leader on its goal, a follower on a parked slot) within
+                       ``dock_radius`` along a straight segment clear by r_uav + r_safe, DWA drops its dist term
+                       (beta = 0; admissibility still holds the clearance): at rest, the centimetres of clearance
+                       a first step would cost outscored the goal terms, and a follower froze 0.5 m from its
+                       slot beside a tree [X]
     reverse_turn_angle  a UAV steering by a path's lookahead point (the leader; a rejoining follower) turns in place
                        when that point lies more than this far off its nose: DWA turns through a wide circle
                        (a follower circled a whole wall's side to reach a point behind it) [X]
@@ -123,6 +129,7 @@ class ExpertConfig(_Config):
     dock_turn_angle: float = math.radians(45.0)
     dock_radius: float = 1.5
     reverse_turn_angle: float = math.radians(100.0)
+    final_approach_free: bool = True
     pursuit_speed_cap: bool = True
     k_h: float = 1.0
     k_z: float = 0.5
@@ -162,7 +169,7 @@ class ExpertConfig(_Config):
                 raise ValueError(f"{o}.{name}: expected a {cls.__name__}")
         for name in ("use_vfh", "neighbour_prediction", "shape_switching", "climb_target_limit", "park_turn",
                      "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap",
-                     "rejoin_hidden"):
+                     "rejoin_hidden", "final_approach_free"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{o}.{name}={getattr(self, name)!r}: expected a bool")
         _check_choice(o, "astar_layer", self.astar_layer, ASTAR_LAYERS)
@@ -314,6 +321,8 @@ class FusionExpert(OnboardPolicy):
             gap_z = _gap_altitude(view, lookahead, z_slot, cfg)
             z_goal = z_slot if gap_z is None else gap_z
             target = np.array([lookahead[0], lookahead[1], z_goal])
+            if np.linalg.norm(target - pos) < 1e-6:             # on the target: 3D VFH+ looks along the heading
+                target = pos + np.array([math.cos(s[PSI]), math.sin(s[PSI]), 0.0])
             close = view.neighbour_alive & (np.linalg.norm(movers_pos - pos, axis=1) < cfg.vfh_neighbour_radius)
             vfh_result = vfh3d_step(mem.vfh, cfg.vfh, lim, pos, s[PSI], s[V], s[VZ], target - pos, centres, probs,
                                     view.occupancy.resolution, movers_pos[close])
@@ -340,11 +349,14 @@ class FusionExpert(OnboardPolicy):
             mem.mode = LEVEL
 
         clearance_now = _clearance(pos, obstacles, radius, lim.r_uav)
+        dwa_cfg = cfg.dwa
+        if cfg.final_approach_free and self._final_approach(view, goal, obstacles, radius, cfg):
+            dwa_cfg = replace(dwa_cfg, beta=0.0)
         if len(fence):
             obstacles = np.concatenate([obstacles, fence])
         radii = np.concatenate([np.full(len(obstacles) - len(fence), radius), np.zeros(len(fence))])
         def plan(vz):
-            return dwa_plan(s, lim, cfg.dwa, heading_goal, obstacles, radii, vz_cmd=vz, lookahead=lookahead,
+            return dwa_plan(s, lim, dwa_cfg, heading_goal, obstacles, radii, vz_cmd=vz, lookahead=lookahead,
                             clearance_now=clearance_now, movers_pos=movers_pos[view.neighbour_alive],
                             movers_vel=movers_vel[view.neighbour_alive], v_ref=v_ref, v_cap=v_cap,
                             prev_alignment=mem.prev_alignment)
@@ -390,6 +402,20 @@ class FusionExpert(OnboardPolicy):
             "replans": mem.replans, "path_found": mem.path_found, "column": t < mem.column_until,
             "clearance": clearance_now}
         return np.array([v_c, w_c, vz_cmd])
+
+    @staticmethod
+    def _final_approach(view, goal, obstacles, radius: float, cfg: ExpertConfig) -> bool:
+        """Whether the UAV closes on a fixed target (the leader on its goal, a follower on a parked slot) within
+        ``dock_radius`` along a straight segment clear of its own map's voxels by r_uav + r_safe."""
+        pos = view.state[:3]
+        if view.is_leader:
+            target = view.goal
+        elif view.leader_state[V] < cfg.leader_stopped_speed:
+            target = np.array([goal[0], goal[1], view.z_ref + view.slot_offset[2]])
+        else:
+            return False
+        return bool(np.linalg.norm(target[:2] - pos[:2]) < cfg.dock_radius
+                    and _segment_clear(obstacles, pos, target, view.limits.r_uav + view.limits.r_safe + radius))
 
     def _no_progress(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float) -> bool:
         """Whether the leader has gained less than ``trail_spacing`` on the goal in the last ``stuck_window`` s."""
@@ -494,7 +520,8 @@ class FusionExpert(OnboardPolicy):
         c, s_ = math.cos(pred_psi), math.sin(pred_psi)
         goal = pred_xy + np.array([c * offset[0] - s_ * offset[1], s_ * offset[0] + c * offset[1]])
         heading_l = np.array([math.cos(lead[PSI]), math.sin(lead[PSI])])
-        a_j = goal - view.state[:2] + cfg.k_h * heading_l
+        lead_moving = lead[V] >= cfg.leader_stopped_speed
+        a_j = goal - view.state[:2] + (cfg.k_h * heading_l if lead_moving else 0.0)   # a parked slot is the target
         lookahead = view.state[:2] + a_j
         cl, sl = heading_l
         slot_now = lead[:2] + np.array([cl * offset[0] - sl * offset[1], sl * offset[0] + cl * offset[1]])
@@ -520,7 +547,7 @@ class FusionExpert(OnboardPolicy):
                 mem.on_path = True
                 return guide, guide, None, None
         e_par = float((slot_now - view.state[:2]) @ heading_l)
-        if lead[V] < cfg.leader_stopped_speed:                  # closing on a parked slot, from any side
+        if not lead_moving:                                     # closing on a parked slot, from any side
             to_slot = slot_now - view.state[:2]
             e_par = float(np.linalg.norm(to_slot)) * max(0.0, math.cos(_bearing_error(view.state, to_slot)))
         v_ref = float(np.clip(lead[V] + cfg.k_f * e_par, 0.0, lim.v_max))

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from gymnasium import spaces
 
+from baselines.dwa import dwa_plan
 from baselines.expert import (WEIGHT_NAMES, ExpertConfig, FusionExpert, StandardDWA, _away_vertically,
                               _columns_without_gap, _segment_clear)
 from uavform_env import EnvConfig, parallel_env
@@ -382,3 +383,18 @@ def test_formation_passes_an_opening_in_single_file():
     assert np.all(in_opening.any(axis=0))                              # every UAV went through the opening
     assert np.all((states[:, :, 1][in_opening] > 11.7) & (states[:, :, 1][in_opening] < 14.3))
     assert np.all(states[:, :, 0].max(axis=0) < 17.0)                  # no detours past the goal either
+
+
+def test_dist_term_freezes_dwa_at_rest_and_the_final_approach_drops_it():
+    """At rest beside a voxel (0.98 m away), the first 2 cm toward a goal 0.5 m ahead cost clearance below
+    dist_cap: the expert's DWA stays at rest. Without the dist term (its final approach on a clear segment)
+    it moves, and admissibility still guards the clearance."""
+    cfg = ExpertConfig().dwa
+    state = np.zeros(7)
+    state[:3] = (0.0, 0.0, 3.0)
+    voxel, goal = np.array([[0.6, -0.78, 3.0]]), np.array([0.5, 0.0])
+    radius = np.full(1, 0.2 * math.sqrt(3.0) / 2.0)
+    frozen = dwa_plan(state, UAVLimits(), cfg, goal, voxel, radius, lookahead=goal, v_ref=0.25)
+    moving = dwa_plan(state, UAVLimits(), cfg.replace(beta=0.0), goal, voxel, radius, lookahead=goal, v_ref=0.25)
+    assert frozen.admissible and frozen.v == 0.0
+    assert moving.admissible and moving.v == pytest.approx(0.02) and moving.w == 0.0
