@@ -262,85 +262,190 @@ def _window_grid(v_lo, v_hi, w_lo, w_hi, v_res, w_res):
     return vs, ws
 
 
+_SKIP_MARGIN = 1e-9  # m: the geometric skip tests below keep this much slack over float rounding
+
+
 @numba.njit(cache=True)
-def _rollout(x, y, z, psi, v, w, vz, dt, path):
-    """Fill ``path`` (n, 4) with the poses (x, y, z, psi) after 1..n steps of constant input."""
+def _rollout_table(x, y, z, v, vz, dt, yaw, path):
+    """Fill ``path`` (n, 4) with the poses (x, y, z, psi) after 1..n steps of constant input.
+
+    The arithmetic of ``integrate``, with its yaw sequence precomputed per w (it does not depend on
+    v): yaw[k] = (psi_k, cos psi_k, sin psi_k).
+    """
     for k in range(path.shape[0]):
-        x, y, z, psi = integrate(x, y, z, psi, v, w, vz, dt)
+        x, y, z = x + v * yaw[k, 1] * dt, y + v * yaw[k, 2] * dt, z + vz * dt
         path[k, 0] = x
         path[k, 1] = y
         path[k, 2] = z
-        path[k, 3] = psi
+        path[k, 3] = yaw[k, 0]
+
+
+_NEAR_BIN = 0.05  # m: bucket width of the nearest-first order of _nearby
 
 
 @numba.njit(cache=True)
-def _nearby(obstacles, radii, x0, y0, z0, reach):
-    """The obstacles whose surface is closer than ``reach`` to (x0, y0, z0), copied out once per cycle."""
+def _nearby(obstacles, radii, x0, y0, z0, reach, r_uav):
+    """The obstacles whose surface is closer than ``reach`` to (x0, y0, z0), copied out once per cycle.
+
+    Returns their centres, their radii plus ``r_uav``, and ``lows``: the obstacles come in buckets of
+    ``_NEAR_BIN`` by their clearance at the start point, |o - start| - R_o - r_uav (a counting sort,
+    nearest bucket first), and ``lows`` is the lower edge of each one's bucket (-inf for the first),
+    so it is non-decreasing and never above that clearance.
+    """
     keep = np.empty(obstacles.shape[0], dtype=np.int64)
+    bins = np.empty(obstacles.shape[0], dtype=np.int64)
     m = 0
+    n_bins = 1
     for o in range(obstacles.shape[0]):
         dx, dy, dz = obstacles[o, 0] - x0, obstacles[o, 1] - y0, obstacles[o, 2] - z0
         lim = reach + radii[o]
-        if dx * dx + dy * dy + dz * dz < lim * lim:
+        d2 = dx * dx + dy * dy + dz * dz
+        if d2 < lim * lim:
+            low = math.sqrt(d2) - (radii[o] + r_uav)
+            j = int(low / _NEAR_BIN) if low >= _NEAR_BIN else 0
             keep[m] = o
+            bins[m] = j
+            n_bins = max(n_bins, j + 1)
             m += 1
-    near = np.empty((m, 3))
-    near_radii = np.empty(m)
+    start = np.zeros(n_bins + 1, dtype=np.int64)
     for i in range(m):
-        near[i, :] = obstacles[keep[i], :]
-        near_radii[i] = radii[keep[i]]
-    return near, near_radii
+        start[bins[i] + 1] += 1
+    for j in range(n_bins):
+        start[j + 1] += start[j]
+    near = np.empty((m, 3))
+    near_rads = np.empty(m)
+    near_lows = np.empty(m)
+    for i in range(m):
+        j = bins[i]
+        at = start[j]
+        start[j] += 1
+        o = keep[i]
+        near[at, 0], near[at, 1], near[at, 2] = obstacles[o, 0], obstacles[o, 1], obstacles[o, 2]
+        near_rads[at] = radii[o] + r_uav
+        near_lows[at] = j * _NEAR_BIN if j > 0 else -math.inf
+    return near, near_rads, near_lows
+
+
+_BLOCK = 5  # rollout steps per bounding sphere of _static_clearance
 
 
 @numba.njit(cache=True)
-def _static_clearance(path, x0, y0, z0, step_len, obstacles, radii, r_uav, cap, stop_below):
+def _bounding_sphere(path, k0, k1):
+    """Centre of the bounding box of path[k0:k1] and the farthest distance of those points from it."""
+    lo_x = hi_x = path[k0, 0]
+    lo_y = hi_y = path[k0, 1]
+    lo_z = hi_z = path[k0, 2]
+    for k in range(k0 + 1, k1):
+        lo_x, hi_x = min(lo_x, path[k, 0]), max(hi_x, path[k, 0])
+        lo_y, hi_y = min(lo_y, path[k, 1]), max(hi_y, path[k, 1])
+        lo_z, hi_z = min(lo_z, path[k, 2]), max(hi_z, path[k, 2])
+    cx, cy, cz = 0.5 * (lo_x + hi_x), 0.5 * (lo_y + hi_y), 0.5 * (lo_z + hi_z)
+    r2 = 0.0
+    for k in range(k0, k1):
+        dx, dy, dz = path[k, 0] - cx, path[k, 1] - cy, path[k, 2] - cz
+        r2 = max(r2, dx * dx + dy * dy + dz * dz)
+    return cx, cy, cz, math.sqrt(r2)
+
+
+@numba.njit(cache=True)
+def _static_clearance(path, x0, y0, z0, obstacles, rads, lows, cap, stop_below, spheres):
     """min_k min_o |p_k - o| - R_o - r_uav over the rollout, exact below ``cap`` (spec (b5)).
 
+    ``obstacles``, ``rads`` (R_o + r_uav) and ``lows`` (non-decreasing lower bounds of |o - start| - rads)
+    come from ``_nearby``.
+    ``spheres`` is scratch space (n_blocks, 4) for the bounding spheres of the blocks.
     Returns early once the value drops below ``stop_below`` (d_brake: the sample is inadmissible
-    whatever the exact value). An obstacle out of reach of the whole rollout costs one squared
-    distance; along the rollout an obstacle is rechecked only once the path (at most ``step_len``
-    per step) could beat the current minimum.
+    whatever the exact value). The minimum does not depend on the order in which obstacles and
+    points are visited; nearest first finds a small minimum early. Only obstacles that cannot
+    lower the current minimum are passed over, each bound with ``_SKIP_MARGIN`` of slack over float
+    rounding: those whose surface is farther than the minimum from the sphere around the start
+    through the rollout's farthest point end the loop (by bucket, nearest first); those farther from the
+    bounding sphere of the whole rollout, or of a block of ``_BLOCK`` steps, are skipped. A block
+    that may come closer is evaluated whole on squared distances with one square root: sqrt and
+    the subtraction are monotone in floating point, so that is the block's exact minimum.
     """
     n = path.shape[0]
-    reach = step_len * n
+    n_blocks = (n + _BLOCK - 1) // _BLOCK
+    r2_start = 0.0
+    for k in range(n):
+        dx, dy, dz = path[k, 0] - x0, path[k, 1] - y0, path[k, 2] - z0
+        r2_start = max(r2_start, dx * dx + dy * dy + dz * dz)
+    r_start = math.sqrt(r2_start) + _SKIP_MARGIN
+    lo_x = lo_y = lo_z = math.inf
+    hi_x = hi_y = hi_z = -math.inf
+    for b in range(n_blocks):
+        bx, by, bz, r = _bounding_sphere(path, b * _BLOCK, min(n, (b + 1) * _BLOCK))
+        spheres[b, 0], spheres[b, 1], spheres[b, 2], spheres[b, 3] = bx, by, bz, r + _SKIP_MARGIN
+        lo_x, hi_x = min(lo_x, bx - r), max(hi_x, bx + r)
+        lo_y, hi_y = min(lo_y, by - r), max(hi_y, by + r)
+        lo_z, hi_z = min(lo_z, bz - r), max(hi_z, bz + r)
+    # one sphere around the block spheres: every point is within r_centre of (cx, cy, cz)
+    cx, cy, cz = 0.5 * (lo_x + hi_x), 0.5 * (lo_y + hi_y), 0.5 * (lo_z + hi_z)
+    r_centre = 0.0
+    for b in range(n_blocks):
+        dx, dy, dz = spheres[b, 0] - cx, spheres[b, 1] - cy, spheres[b, 2] - cz
+        r_centre = max(r_centre, math.sqrt(dx * dx + dy * dy + dz * dz) + spheres[b, 3])
+    r_centre += _SKIP_MARGIN
     best = cap
     for o in range(obstacles.shape[0]):
+        if lows[o] >= r_start + best:
+            break
         ox, oy, oz = obstacles[o, 0], obstacles[o, 1], obstacles[o, 2]
-        rad = radii[o] + r_uav
-        lim = reach + best + rad
-        dx, dy, dz = ox - x0, oy - y0, oz - z0
+        rad = rads[o]
+        lim = r_centre + best + rad
+        dx, dy, dz = ox - cx, oy - cy, oz - cz
         if dx * dx + dy * dy + dz * dz >= lim * lim:
             continue
-        k = 0
-        while k < n:
-            dx, dy, dz = path[k, 0] - ox, path[k, 1] - oy, path[k, 2] - oz
-            c = math.sqrt(dx * dx + dy * dy + dz * dz) - rad
+        for b in range(n_blocks):
+            lim = spheres[b, 3] + best + rad
+            dx, dy, dz = ox - spheres[b, 0], oy - spheres[b, 1], oz - spheres[b, 2]
+            if dx * dx + dy * dy + dz * dz >= lim * lim:
+                continue
+            d2_min = math.inf
+            for k in range(b * _BLOCK, min(n, (b + 1) * _BLOCK)):
+                dx, dy, dz = path[k, 0] - ox, path[k, 1] - oy, path[k, 2] - oz
+                d2 = dx * dx + dy * dy + dz * dz
+                if d2 < d2_min:
+                    d2_min = d2
+            c = math.sqrt(d2_min) - rad  # sqrt and - are monotone: the block's smallest clearance
             if c < best:
                 best = c
                 if best < stop_below:
                     return best
-            if step_len <= 0.0:
-                break
-            skip = (c - best) / step_len
-            if skip >= n:
-                break
-            k += 1 + int(skip)
     return best
 
 
 @numba.njit(cache=True)
-def _mover_clearance(path, dt, movers_pos, movers_vel, R_uu):
-    """min_k min_m |p_k - m(t_k)| - R_uu, movers predicted at constant velocity (spec (g6))."""
-    best = math.inf
+def _mover_track(dt, n_steps, movers_pos, movers_vel):
+    """(K, n_steps, 3): the movers at t_k = (k + 1) dt, predicted at constant velocity (spec (g6))."""
+    track = np.empty((movers_pos.shape[0], n_steps, 3))
     for m in range(movers_pos.shape[0]):
-        for k in range(path.shape[0]):
+        for k in range(n_steps):
             t = (k + 1) * dt
-            dx = path[k, 0] - (movers_pos[m, 0] + movers_vel[m, 0] * t)
-            dy = path[k, 1] - (movers_pos[m, 1] + movers_vel[m, 1] * t)
-            dz = path[k, 2] - (movers_pos[m, 2] + movers_vel[m, 2] * t)
-            c = math.sqrt(dx * dx + dy * dy + dz * dz) - R_uu
-            if c < best:
-                best = c
+            for j in range(3):
+                track[m, k, j] = movers_pos[m, j] + movers_vel[m, j] * t
+    return track
+
+
+@numba.njit(cache=True)
+def _mover_clearance(path, track, R_uu):
+    """min_k min_m |p_k - m(t_k)| - R_uu for the predicted mover positions ``track`` (``_mover_track``).
+
+    Returns the first value below 0 (in mover-major order) as soon as one turns up. The square
+    root is taken only for a new smallest squared distance: sqrt and the subtraction are monotone
+    in floating point, so this is the same minimum.
+    """
+    best = math.inf
+    best_d2 = math.inf
+    for m in range(track.shape[0]):
+        for k in range(path.shape[0]):
+            dx = path[k, 0] - track[m, k, 0]
+            dy = path[k, 1] - track[m, k, 1]
+            dz = path[k, 2] - track[m, k, 2]
+            d2 = dx * dx + dy * dy + dz * dz
+            if d2 < best_d2:
+                best_d2 = d2
+                best = math.sqrt(d2) - R_uu
                 if best < 0.0:
                     return best
     return best
@@ -433,9 +538,24 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, o
     v / v_max term, otherwise 1 - |v - vel_target| / v_max; ``rot_ref`` is 0 (|w|) or w0 (|w - w0|).
     ``exact_clearance`` evaluates inadmissible samples to the end instead of stopping early.
     """
+    v_axis = _axis(v_lo, v_hi, v_res)
+    w_axis = _axis(w_lo, w_hi, w_res)
+    n_w = w_axis.size
     vs, ws = _window_grid(v_lo, v_hi, w_lo, w_hi, v_res, w_res)
     n_samples = vs.shape[0]
     x0, y0, z0, psi0 = state[0], state[1], state[2], state[3]
+    # The yaw sequence of a rollout depends on w only: one table of psi_k, cos psi_k, sin psi_k per w,
+    # applied exactly as ``integrate`` does.
+    yaw = np.empty((n_w, n_steps, 3))
+    for j in range(n_w):
+        psi = psi0
+        for k in range(n_steps):
+            psi = wrap(psi + w_axis[j] * dt)
+            yaw[j, k, 0] = psi
+            yaw[j, k, 1] = math.cos(psi)
+            yaw[j, k, 2] = math.sin(psi)
+    track = _mover_track(dt, n_steps, movers_pos, movers_vel)
+    spheres = np.empty(((n_steps + _BLOCK - 1) // _BLOCK, 4))
     path = np.empty((n_steps, 4))
     clearance = np.empty(n_samples)
     admissible = np.zeros(n_samples, dtype=np.bool_)
@@ -449,16 +569,16 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, o
     bearing_now = math.atan2(goal_y - y0, goal_x - x0)
     # no rollout gets farther than the fastest one; beyond its reach plus the clearance cap nothing counts
     reach = dt * n_steps * math.sqrt(v_hi * v_hi + vz * vz) + max(D_cap, v_hi * v_hi / (2.0 * a_max)) + r_uav
-    obstacles, radii = _nearby(obstacles, radii, x0, y0, z0, reach)
+    obstacles, rads, lows = _nearby(obstacles, radii, x0, y0, z0, reach, r_uav)
     for i in range(n_samples):
         v, w = vs[i], ws[i]
-        _rollout(x0, y0, z0, psi0, v, w, vz, dt, path)
+        _rollout_table(x0, y0, z0, v, vz, dt, yaw[i % n_w], path)
         d_brake = v * v / (2.0 * a_max)
-        c = _static_clearance(path, x0, y0, z0, dt * math.sqrt(v * v + vz * vz), obstacles, radii, r_uav,
-                              max(D_cap, d_brake), -math.inf if exact_clearance else d_brake)
+        c = _static_clearance(path, x0, y0, z0, obstacles, rads, lows, max(D_cap, d_brake),
+                              -math.inf if exact_clearance else d_brake, spheres)
         ok = c > 0.0 and c >= d_brake
         if (ok or exact_clearance) and movers_pos.shape[0] > 0:
-            c_mover = _mover_clearance(path, dt, movers_pos, movers_vel, R_uu)
+            c_mover = _mover_clearance(path, track, R_uu)
             ok = ok and c_mover >= 0.0
             c = min(c, c_mover)
         clearance[i] = c

@@ -18,8 +18,8 @@ import numpy as np
 
 from uavform_env.config import UAVLimits, _check_choice, _check_int, _check_range, _Config
 from uavform_env.dynamics import wrap
-from uavform_env.polar_histogram import (ENLARGE_MODES, WEIGHT_RELATIONS, cell_geometry, cell_index,
-                                         histogram_shape, primary_histogram, weight_constants)
+from uavform_env.polar_histogram import (ENLARGE_MODES, WEIGHT_RELATIONS, _primary_kernel, cell_geometry,
+                                         cell_index, histogram_shape, weight_constants)
 
 
 @dataclass(frozen=True)
@@ -218,6 +218,15 @@ def update_binary(primary, previous_binary, tau_low: float, tau_high: float) -> 
 
 
 @numba.njit(cache=True)
+def _binary_kernel(primary, previous, tau_low, tau_high, out):
+    """``update_binary`` on (N_e, N_z) arrays: 1 above tau_high, 0 below tau_low, else ``previous``."""
+    for e in range(primary.shape[0]):
+        for col in range(primary.shape[1]):
+            h = primary[e, col]
+            out[e, col] = 1 if h > tau_high else (0 if h < tau_low else previous[e, col])
+
+
+@numba.njit(cache=True)
 def _select_kernel(masked, win, units, refs, weights, extra, cell, window_open):
     """Open-window test (spec (f6)) and the cheapest open cell; returns (n_open, row, column, cost).
 
@@ -271,6 +280,17 @@ def _select_kernel(masked, win, units, refs, weights, extra, cell, window_open):
             for col in range(n_z):
                 window_closed[col] -= row_closed[e - win, col] != 0
     return n_open, best_e, best_z, best_cost
+
+
+_shape = functools.lru_cache(maxsize=8)(histogram_shape)
+
+
+@functools.lru_cache(maxsize=8)
+def _zeros_u8(n_e: int, n_z: int) -> np.ndarray:
+    """A shared read-only all-free binary histogram: the hysteresis input of the first cycle."""
+    zeros = np.zeros((n_e, n_z), dtype=np.uint8)
+    zeros.flags.writeable = False
+    return zeros
 
 
 @functools.lru_cache(maxsize=8)
@@ -342,7 +362,8 @@ _cell_of = cell_index.py_func
 
 def _direction_cell(direction, name: str, cell: float, n_e: int, n_z: int) -> tuple[int, int]:
     try:
-        dx, dy, dz = (float(c) for c in direction)
+        dx, dy, dz = direction
+        dx, dy, dz = float(dx), float(dy), float(dz)
     except (TypeError, ValueError):
         raise ValueError(f"{name}={direction!r}: expected a 3-vector") from None
     if not (math.isfinite(dx) and math.isfinite(dy) and math.isfinite(dz)) or dx == dy == dz == 0.0:
@@ -364,7 +385,7 @@ def _select(masked, target_dir, current_dir, previous_dir, cfg: VFHConfig, prima
             weight_of[ref] = weight_of.get(ref, 0.0) + weight
     ordered = sorted(weight_of, key=weight_of.get, reverse=True)  # the largest weight prunes best
     units = cell_geometry(cell)[2]
-    refs = np.array([units[ref] for ref in ordered]).reshape(-1, 3)
+    refs = units[[ref[0] for ref in ordered], [ref[1] for ref in ordered]]  # (k, 3), a fresh C-contiguous copy
     if cfg.k4:
         if primary is None:
             raise ValueError("primary: the primary histogram is needed when VFHConfig.k4 > 0")
@@ -419,13 +440,25 @@ def vfh3d_step(state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos, psi: flo
         centres = np.concatenate([centres, others])
         probs = np.concatenate([probs, np.ones(others.shape[0])])
         radii = np.concatenate([radii, np.full(others.shape[0], r_e + extra)])
-    primary, emergency = primary_histogram(centres, probs, radii, pos, cfg.alpha_h, cfg.R_w, a, b,
-                                           cfg.enlarge_mode)
-    binary = update_binary(primary, state.binary, cfg.tau_low, cfg.tau_high)
+    # The stage kernels are called directly: the inputs are built here, so the wrappers' checks
+    # (primary_histogram, update_binary, masked_histogram) hold by construction.
+    n_e, n_z = _shape(cfg.alpha_h)
+    primary = np.zeros((n_e, n_z))
+    emergency = bool(_primary_kernel(centres, probs, radii, pos, float(cfg.alpha_h), n_e, n_z, float(cfg.R_w),
+                                     float(a), float(b), cfg.enlarge_mode == "paper_floor", 0.0, primary))
+    if state.binary is None:
+        previous = _zeros_u8(n_e, n_z)
+    else:
+        previous = np.ascontiguousarray(state.binary, dtype=np.uint8)
+        if previous.shape != primary.shape:
+            raise ValueError(f"previous_binary: expected shape {primary.shape}, got {previous.shape}")
+    binary = np.empty((n_e, n_z), dtype=np.uint8)
+    _binary_kernel(primary, previous, float(cfg.tau_low), float(cfg.tau_high), binary)
     state.binary = binary
     delta_r, delta_l = _turning(centres, probs, radii, pos, psi, v, limits, cfg.R_w)
-    masked = masked_histogram(binary, psi, delta_r, delta_l, limits.climb_angle_limit(v), float(pos[2]),
-                              cfg.R_w, limits, cfg.alpha_h)
+    masked = np.empty((n_e, n_z), dtype=np.uint8)
+    _mask_kernel(binary, float(psi), float(delta_r), float(delta_l), float(limits.climb_angle_limit(v)),
+                 float(pos[2]), float(cfg.R_w), limits.z_min, limits.z_max, float(cfg.alpha_h), masked)
     gamma = math.atan2(vz, max(v, 1e-3))
     current_dir = (math.cos(psi) * math.cos(gamma), math.sin(psi) * math.cos(gamma), math.sin(gamma))
     cell, _, n_candidates = _select(masked, target_dir, current_dir, state.previous_dir, cfg, primary)
