@@ -105,10 +105,11 @@ class ExpertConfig(_Config):
                        at most ``k_z`` times the altitude error: the 5-degree elevation cells never give 0,
                        so a follower parked at its slot (target ~1 m away) otherwise oscillates +/- 1 m
                        around the slot altitude and never closes the formation [X]
-    lateral_emergency_to_dwa  an emergency of (g5) (a voxel inside 3D VFH+'s r_e) whose nearest voxel lies more
-                       beside the UAV than above or below it is left to DWA, whose admissibility keeps the
-                       clearance: the spec's stop-and-climb away from it never ends beside a floor-to-ceiling
-                       wall (a follower froze at a corridor's mouth) [X]
+    lateral_emergency_to_dwa  an emergency of (g5) (a voxel or neighbour inside 3D VFH+'s r_e) whose nearest voxel
+                       lies more beside the UAV than above or below it, or which no voxel within r_e raised (a
+                       neighbour did), is left to DWA, whose admissibility keeps the clearance and the separation:
+                       the spec's stop-and-climb away never ends beside a floor-to-ceiling wall (a follower froze
+                       at a corridor's mouth), nor beside a parked leader [X]
     park_turn          the parked leader turns in place (v = 0) to the heading nearest its own whose follower
                        slots are all free in its own map and inside the world bounds: parked at the goal, it
                        can otherwise leave a slot inside an obstacle, and the formation can never close [X]
@@ -388,7 +389,8 @@ class FusionExpert(OnboardPolicy):
         elif mem.on_path and abs(_bearing_error(s, lookahead - pos[:2])) > cfg.reverse_turn_angle:
             v_c = 0.0                                           # the path doubles back: turn in place
             w_c = float(np.clip(_bearing_error(s, lookahead - pos[:2]), -lim.w_max, lim.w_max))
-        vz_away = _away_vertically(pos, view.occupancy, cfg.vfh.R_w, lim, cfg.lateral_emergency_to_dwa) \
+        r_e = cfg.vfh.resolve(lim, view.occupancy.resolution)[0]
+        vz_away = _away_vertically(pos, view.occupancy, r_e, lim, cfg.lateral_emergency_to_dwa) \
             if emergency and vfh_result is not None else None
         if vz_away is not None:
             v_c, vz_cmd = 0.0, vz_away
@@ -863,11 +865,15 @@ def _closes_on_movers(pos, vz: float, movers_pos, movers_vel, dwa: DWAConfig, li
 
 
 def _away_vertically(pos, occ_map, radius, lim, lateral_to_dwa: bool) -> float | None:
-    """The emergency escape of (g5): full vertical speed away from the nearest voxel; None (no escape, DWA
-    acts) when ``lateral_to_dwa`` and that voxel lies more beside the UAV than above or below it."""
+    """The emergency escape of (g5): full vertical speed away from the nearest voxel within ``radius`` (r_e).
+
+    None (no escape, DWA acts) when ``lateral_to_dwa`` and that voxel lies more beside the UAV than above
+    or below it, or when no voxel is that near (a neighbour inside r_e raised the emergency: DWA's moving
+    obstacles handle it).
+    """
     centres, _ = occ_map.occupied_in_sphere(pos, radius)
     if len(centres) == 0:
-        return 0.0
+        return None if lateral_to_dwa else 0.0
     nearest = centres[np.argmin(np.sum((centres - pos) ** 2, axis=1))]
     if lateral_to_dwa and abs(nearest[2] - pos[2]) < math.hypot(*(nearest[:2] - pos[:2])):
         return None

@@ -363,6 +363,8 @@ def test_emergency_beside_a_wall_is_left_to_dwa():
     occ = OccupancyMap((0.0, 0.0, 0.0), (10, 10, 30), 0.2)
     occ.integrate((1.0, 1.0, 3.0), [[1.5, 1.0, 3.1]], np.array([True]))   # a voxel 0.5 m beside the UAV
     pos = np.array([1.0, 1.0, 3.0])
+    assert _away_vertically(pos, occ, 0.4, lim, lateral_to_dwa=True) is None          # none within r_e: a neighbour's
+    assert _away_vertically(pos, occ, 0.4, lim, lateral_to_dwa=False) == 0.0
     assert _away_vertically(pos, occ, 5.0, lim, lateral_to_dwa=True) is None
     assert _away_vertically(pos, occ, 5.0, lim, lateral_to_dwa=False) == -lim.vz_max   # spec: away from it
     occ.integrate((1.0, 1.0, 2.9), [[1.0, 1.0, 3.3]], np.array([True]))   # nearer, and above
