@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 
+import numba
 import numpy as np
 
 from uavform_env.config import _check_choice, _check_int, _check_range, _Config
@@ -635,7 +636,9 @@ def _columns_without_gap(occ_map, centres: np.ndarray, z_min: float, z_max: floa
     inside = (centres[:, 2] >= z_min - res) & (centres[:, 2] <= z_max + res)
     if not inside.any():
         return np.empty((0, 2))
-    ij = np.unique(np.floor((centres[inside, :2] - occ_map.origin[:2]) / res).astype(np.int64), axis=0)
+    n_y = occ_map.shape[1]
+    keys = np.unique(np.floor((centres[inside, :2] - occ_map.origin[:2]) / res).astype(np.int64) @ np.array([n_y, 1]))
+    ij = np.column_stack([keys // n_y, keys % n_y])
     k_lo = max(0, int(math.ceil((z_min - occ_map.origin[2]) / res - 0.5)))
     k_hi = min(occ_map.shape[2], int(math.floor((z_max - occ_map.origin[2]) / res - 0.5)) + 1)
     l_occ = occ_map.cfg.logodds(occ_map.cfg.p_occ)
@@ -664,14 +667,19 @@ def _level_way(r, cfg: ExpertConfig, target_dir: np.ndarray) -> bool:
     return bool(np.any(level & (off <= cfg.level_window)))
 
 
-def _segment_clear(centres: np.ndarray, a: np.ndarray, b: np.ndarray, clearance: float) -> bool:
+@numba.njit(cache=True)
+def _segment_clear(centres, a, b, clearance):
     """Whether every voxel centre lies farther than ``clearance`` from the segment a-b (3D)."""
-    if len(centres) == 0:
-        return True
-    ab = b - a
-    t = np.clip((centres - a) @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0)
-    d2 = np.sum((a + t[:, None] * ab - centres) ** 2, axis=1)
-    return bool(d2.min() > clearance * clearance)
+    abx, aby, abz = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    ab2 = max(abx * abx + aby * aby + abz * abz, 1e-12)
+    c2 = clearance * clearance
+    for k in range(centres.shape[0]):
+        px, py, pz = centres[k, 0] - a[0], centres[k, 1] - a[1], centres[k, 2] - a[2]
+        t = min(1.0, max(0.0, (px * abx + py * aby + pz * abz) / ab2))
+        dx, dy, dz = px - t * abx, py - t * aby, pz - t * abz
+        if dx * dx + dy * dy + dz * dz <= c2:
+            return False
+    return True
 
 
 def _gap_altitude(view, target_xy, z_pref: float, cfg: ExpertConfig) -> float | None:
