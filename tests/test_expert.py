@@ -145,6 +145,10 @@ def test_weights_change_the_actions():
     (dict(dwa="IDWA"), "ExpertConfig.dwa"),
     (dict(climb_target_limit=1), "ExpertConfig.climb_target_limit"),
     (dict(park_turn=None), "ExpertConfig.park_turn"),
+    (dict(rejoin="leader"), "ExpertConfig.rejoin"),
+    (dict(reverse_turn_angle=4.0), "ExpertConfig.reverse_turn_angle"),
+    (dict(dock_radius=-1.0), "ExpertConfig.dock_radius"),
+    (dict(level_line="yes"), "ExpertConfig.level_line"),
 ])
 def test_bad_config_names_the_field(kwargs, match):
     with pytest.raises(ValueError, match=match):
@@ -385,6 +389,13 @@ def test_formation_passes_an_opening_in_single_file():
     assert np.all(in_opening.any(axis=0))                              # every UAV went through the opening
     assert np.all((states[:, :, 1][in_opening] > 11.7) & (states[:, :, 1][in_opening] < 14.3))
     assert np.all(states[:, :, 0].max(axis=0) < 17.0)                  # no detours past the goal either
+
+
+def test_trail_rejoin_still_flies_the_opening_safely():
+    """``rejoin="trail"`` (the earlier rule, kept for comparison) follows the leader's trail without collisions."""
+    penv, _, _, states = fly(FusionExpert(ExpertConfig(rejoin="trail")), corridor_wall(), 300)
+    assert not penv.unwrapped.crashed.any()
+    assert np.any(states[:, 1:, 0] > 10.6)                            # a follower got through behind the leader
 
 
 def test_dist_term_freezes_dwa_at_rest_and_the_final_approach_drops_it():
