@@ -722,7 +722,14 @@ def _gap_altitude(view, target_xy, z_pref: float, cfg: ExpertConfig) -> float | 
     free = np.all(wall <= 0.0, axis=0)                                # known free in every column (NaN -> False)
     inside = (z - res / 2 >= lim.z_min - h_b) & (z + res / 2 <= lim.z_max + h_b)
     free &= inside
-    best, best_cost = None, math.inf
+    best = _nearest_free_run(free, z, res, h_b, lim.z_min, lim.z_max, z_pref, cfg.gap_margin)
+    return None if math.isnan(best) else best
+
+
+@numba.njit(cache=True)
+def _nearest_free_run(free, z, res, h_b, z_min, z_max, z_pref, margin):
+    """The altitude nearest ``z_pref`` that keeps ``h_b`` (+ ``margin``) inside a run of ``free`` cells; NaN if none."""
+    best, best_cost = math.nan, math.inf
     k = 0
     n = free.size
     while k < n:
@@ -733,10 +740,9 @@ def _gap_altitude(view, target_xy, z_pref: float, cfg: ExpertConfig) -> float | 
         while j < n and free[j]:
             j += 1
         lo, hi = z[k] - res / 2 + h_b, z[j - 1] + res / 2 - h_b   # centre range that keeps the margin
-        lo, hi = max(lo, lim.z_min), min(hi, lim.z_max)
+        lo, hi = max(lo, z_min), min(hi, z_max)
         if hi >= lo:
-            alt = min(max(z_pref, lo + cfg.gap_margin), hi - cfg.gap_margin) if hi - lo > 2 * cfg.gap_margin \
-                else 0.5 * (lo + hi)
+            alt = min(max(z_pref, lo + margin), hi - margin) if hi - lo > 2 * margin else 0.5 * (lo + hi)
             if abs(alt - z_pref) < best_cost:
                 best, best_cost = alt, abs(alt - z_pref)
         k = j
