@@ -699,31 +699,49 @@ def _gap_altitude(view, target_xy, z_pref: float, cfg: ExpertConfig) -> float | 
     dist = float(np.hypot(d[0], d[1]))
     if dist < 1e-6:
         return None
-    u = d / dist
     ts = np.arange(res, min(cfg.gap_lookahead, dist + res), res)
     if ts.size == 0:
         return None
-    xy = pos[:2] + ts[:, None] * u
-    ij = np.floor((xy - occ.origin[:2]) / res).astype(np.int64)
-    ok = np.all((ij >= 0) & (ij < np.asarray(occ.shape[:2])), axis=1)
-    if not ok.any():
-        return None
-    cols = occ.logodds[ij[ok, 0], ij[ok, 1], :]                      # (K, nz)
-    z = occ.origin[2] + (np.arange(cols.shape[1]) + 0.5) * res
-    h_b = lim.r_uav + lim.r_safe
-    band = np.abs(z - z_pref) <= h_b + res / 2
-    occupied = cols > 0.0
-    blocking = occupied[:, band].any(axis=1)
-    if not blocking.any():
-        return None
-    first = int(np.argmax(blocking))
-    span = max(1, int(round(cfg.gap_depth / res)))
-    wall = cols[first:first + span]
-    free = np.all(wall <= 0.0, axis=0)                                # known free in every column (NaN -> False)
-    inside = (z - res / 2 >= lim.z_min - h_b) & (z + res / 2 <= lim.z_max + h_b)
-    free &= inside
-    best = _nearest_free_run(free, z, res, h_b, lim.z_min, lim.z_max, z_pref, cfg.gap_margin)
+    best = _gap_kernel(occ.logodds, occ.origin, res, pos, d / dist, ts, z_pref, max(1, int(round(cfg.gap_depth / res))),
+                       lim.r_uav + lim.r_safe, lim.z_min, lim.z_max, cfg.gap_margin)
     return None if math.isnan(best) else best
+
+
+@numba.njit(cache=True)
+def _gap_kernel(grid, origin, res, pos, u, ts, z_pref, span, h_b, z_min, z_max, margin):
+    """_gap_altitude on the leaf grid: the columns at ``pos + ts * u``, the first blocking the band around
+    ``z_pref``, and the runs known free through it and the next ``span - 1`` columns; NaN if none."""
+    nx, ny, nz = grid.shape
+    cols = np.empty((ts.size, 2), np.int64)
+    k_cols = 0
+    for i in range(ts.size):
+        ci = int(math.floor((pos[0] + ts[i] * u[0] - origin[0]) / res))
+        cj = int(math.floor((pos[1] + ts[i] * u[1] - origin[1]) / res))
+        if 0 <= ci < nx and 0 <= cj < ny:
+            cols[k_cols, 0], cols[k_cols, 1] = ci, cj
+            k_cols += 1
+    if k_cols == 0:
+        return math.nan
+    z = origin[2] + (np.arange(nz) + 0.5) * res
+    first = -1
+    for i in range(k_cols):
+        for k in range(nz):
+            if abs(z[k] - z_pref) <= h_b + res / 2 and grid[cols[i, 0], cols[i, 1], k] > 0.0:
+                first = i
+                break
+        if first >= 0:
+            break
+    if first < 0:
+        return math.nan
+    free = np.empty(nz, np.bool_)
+    for k in range(nz):
+        ok = (z[k] - res / 2 >= z_min - h_b) and (z[k] + res / 2 <= z_max + h_b)
+        for i in range(first, min(first + span, k_cols)):
+            if not grid[cols[i, 0], cols[i, 1], k] <= 0.0:         # occupied or unknown (NaN)
+                ok = False
+                break
+        free[k] = ok
+    return _nearest_free_run(free, z, res, h_b, z_min, z_max, z_pref, margin)
 
 
 @numba.njit(cache=True)
