@@ -2,7 +2,8 @@
 
 The command must write the report, and each claim's direction on the reduced runs must agree with the
 verdict the committed report (docs/reproduction/summary.json) states, holds or does not hold: a code
-change that flips a difference the report relies on fails here.
+change that flips a difference the report relies on fails here. Where one seed and short episodes decide
+a claim the other way from the full run, the quick verdict is pinned instead (``QUICK_DIFFERS``).
 """
 
 import argparse
@@ -62,12 +63,22 @@ def test_one_record_per_planned_run(quick):
 COMMITTED_CLAIMS = {c["id"]: c for c in json.loads(COMMITTED.read_text())["claims"]} if COMMITTED.exists() else {}
 
 
+# Claims whose one-seed, short-episode rerun comes out the other way from the full report, with the quick verdict
+# pinned: on seed 0 alone IDWA turns less per metre than DWA+E8+E10 (C5), the planar single UAV fails the blocks
+# world (C6), and the crossing's separations tie at 1.09 m (C11, a strict comparison); the full run's other seeds
+# decide each the other way (dense fields: IDWA turns more; some planar UAVs pass; prediction keeps more room).
+QUICK_DIFFERS = {"C5": "holds", "C6": "holds", "C11": "does not hold"}
+
+
 @pytest.mark.parametrize("claim", [c.id for c in CLAIMS])
 def test_reduced_rerun_agrees_with_the_committed_verdict(quick, claim):
     committed = COMMITTED_CLAIMS.get(claim)
     assert committed is not None, f"{COMMITTED} has no verdict for {claim}: regenerate the report"
     rerun = {c["id"]: c for c in check_claims(summarize(read_runs(quick)))}[claim]
-    assert rerun["verdict"] == committed["verdict"], (rerun["evidence"], committed["evidence"])
+    if claim in QUICK_DIFFERS:
+        assert committed["verdict"] != QUICK_DIFFERS[claim], f"{claim} now agrees: drop it from QUICK_DIFFERS"
+    expected = QUICK_DIFFERS.get(claim, committed["verdict"])
+    assert rerun["verdict"] == expected, (rerun["evidence"], committed["evidence"])
 
 
 def test_resume_plays_nothing_twice_and_a_full_folder_needs_resume(quick):
