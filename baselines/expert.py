@@ -295,7 +295,7 @@ class FusionExpert(OnboardPolicy):
         level = cfg.dwa_map_level
         vox_size = view.occupancy.resolution * (2 ** level)
         reach = lim.v_max * cfg.dwa.T_p + cfg.dwa.D_cap + lim.r_uav + vox_size
-        obstacles, _ = view.occupancy.occupied_in_sphere(pos, reach, level=level)
+        obstacles, obstacle_probs = view.occupancy.occupied_in_sphere(pos, reach, level=level)
         radius = vox_size * math.sqrt(3.0) / 2.0
         if view.is_leader:
             goal, lookahead, v_cap, v_ref = self._leader_target(view, mem, cfg, t)
@@ -319,7 +319,11 @@ class FusionExpert(OnboardPolicy):
         vfh_result = None
         emergency = False
         if cfg.use_vfh:
-            centres, probs = view.occupancy.occupied_in_sphere(pos, cfg.vfh.R_w)
+            if level == 0 and reach >= cfg.vfh.R_w:             # the same voxels, in the same order, as a query
+                near = np.sum((obstacles - pos) ** 2, axis=1) <= cfg.vfh.R_w * cfg.vfh.R_w
+                centres, probs = obstacles[near], obstacle_probs[near]
+            else:
+                centres, probs = view.occupancy.occupied_in_sphere(pos, cfg.vfh.R_w)
             gap_z = _gap_altitude(view, lookahead, z_slot, cfg)
             z_goal = z_slot if gap_z is None else gap_z
             target = np.array([lookahead[0], lookahead[1], z_goal])
