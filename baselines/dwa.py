@@ -19,7 +19,7 @@ import numba
 import numpy as np
 
 from uavform_env.config import UAVLimits, _check_choice, _check_range, _Config
-from uavform_env.dynamics import integrate, wrap
+from uavform_env.dynamics import wrap
 
 NORM_MODES = ("sum", "minmax")
 HEADING_REFS = ("endpoint", "current")
@@ -538,7 +538,6 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, o
     v / v_max term, otherwise 1 - |v - vel_target| / v_max; ``rot_ref`` is 0 (|w|) or w0 (|w - w0|).
     ``exact_clearance`` evaluates inadmissible samples to the end instead of stopping early.
     """
-    v_axis = _axis(v_lo, v_hi, v_res)
     w_axis = _axis(w_lo, w_hi, w_res)
     n_w = w_axis.size
     vs, ws = _window_grid(v_lo, v_hi, w_lo, w_hi, v_res, w_res)
