@@ -576,12 +576,11 @@ class FusionExpert(OnboardPolicy):
         lim = view.limits
         s = view.state
         own_vel = np.array([s[V] * math.cos(s[PSI]), s[V] * math.sin(s[PSI]), s[VZ]])
-        k = np.arange(1, round(cfg.dwa.T_p / lim.dt) + 1)[:, None, None] * lim.dt
         lower = (view.neighbour_ids < view.index) & view.neighbour_alive
         if not lower.any():
             return v_cap
-        rel = (s[:3] - movers_pos[lower])[None] + k * (own_vel - movers_vel[lower])[None]
-        if np.linalg.norm(rel, axis=2).min() < cfg.dwa.R_uu:
+        n_steps = round(cfg.dwa.T_p / lim.dt)
+        if _closest_approach(s[:3], own_vel, movers_pos[lower], movers_vel[lower], n_steps, lim.dt) < cfg.dwa.R_uu:
             base = lim.v_max if v_cap is None else v_cap
             return cfg.yield_factor * base
         return v_cap
@@ -798,10 +797,16 @@ def _project_to_altitude(obstacles: np.ndarray, z: float, band: float) -> np.nda
     return out
 
 
-def _clearance(pos, obstacles, radius, r_uav) -> float:
-    if len(obstacles) == 0:
+@numba.njit(cache=True)
+def _clearance(pos, obstacles, radius, r_uav):
+    """Distance from ``pos`` to the nearest voxel surface (balls of ``radius``) minus r_uav; inf without voxels."""
+    if obstacles.shape[0] == 0:
         return math.inf
-    return float(np.sqrt(np.min(np.sum((obstacles - pos) ** 2, axis=1)))) - radius - r_uav
+    best = math.inf
+    for k in range(obstacles.shape[0]):
+        dx, dy, dz = obstacles[k, 0] - pos[0], obstacles[k, 1] - pos[1], obstacles[k, 2] - pos[2]
+        best = min(best, dx * dx + dy * dy + dz * dz)
+    return math.sqrt(best) - radius - r_uav
 
 
 def _follower_errors(view) -> np.ndarray:
@@ -888,6 +893,20 @@ def _vertical_escape(r, lim) -> float:
     if not r.binary[0].any():
         return -lim.vz_max
     return 0.0
+
+
+@numba.njit(cache=True)
+def _closest_approach(pos, vel, movers_pos, movers_vel, n_steps, dt):
+    """The least distance to the movers over steps 1..n_steps, everyone at constant velocity."""
+    best = math.inf
+    for k in range(1, n_steps + 1):
+        t = k * dt
+        for m in range(movers_pos.shape[0]):
+            dx = (pos[0] - movers_pos[m, 0]) + t * (vel[0] - movers_vel[m, 0])
+            dy = (pos[1] - movers_pos[m, 1]) + t * (vel[1] - movers_vel[m, 1])
+            dz = (pos[2] - movers_pos[m, 2]) + t * (vel[2] - movers_vel[m, 2])
+            best = min(best, math.sqrt(dx * dx + dy * dy + dz * dz))
+    return best
 
 
 def _closes_on_movers(pos, vz: float, movers_pos, movers_vel, dwa: DWAConfig, lim) -> bool:
