@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 import uavform_env
 from uavform_env.cli import main
 from uavform_env.evaluation import (WALL_CLOCK_METRICS, bootstrap_ci, list_suites, load_suite, read_results,
-                                    run_suite, summarize, write_tables)
+                                    run_suite, write_tables)
 from uavform_env.evaluation.runner import RESULTS_FILE
 from uavform_env.evaluation.suites import Episode, Suite
 from uavform_env.evaluation.table import summarize, to_markdown, to_marl_eval
