@@ -304,7 +304,7 @@ class FusionExpert(OnboardPolicy):
                                                 "replans": mem.replans}
                 return np.array([0.0, 0.0, float(np.clip(cfg.k_z * (z_slot - pos[2]), -lim.vz_max, lim.vz_max))])
         else:
-            slot_hidden = not _segment_clear(obstacles, pos, view.slot, lim.r_uav + radius)
+            slot_hidden = cfg.rejoin_hidden and not _segment_clear(obstacles, pos, view.slot, lim.r_uav + radius)
             goal, lookahead, v_cap, v_ref = self._follower_target(view, mem, cfg, t, slot_hidden)
 
         if cfg.pursuit_speed_cap:
@@ -386,7 +386,7 @@ class FusionExpert(OnboardPolicy):
         if view.is_leader:
             docking = np.linalg.norm(to_goal) < cfg.dock_radius
         else:
-            docking = (view.leader_state[V] < cfg.leader_stopped_speed and s[V] < cfg.leader_stopped_speed
+            docking = (_leader_parked(view, cfg) and s[V] < cfg.leader_stopped_speed
                        and np.linalg.norm(to_goal) >= view.config.formation.e_f / 2)
         if docking and abs(_bearing_error(s, to_goal)) > cfg.dock_turn_angle:
             v_c = 0.0                                           # turn in place toward a parked slot
@@ -394,9 +394,10 @@ class FusionExpert(OnboardPolicy):
         elif mem.on_path and abs(_bearing_error(s, lookahead - pos[:2])) > cfg.reverse_turn_angle:
             v_c = 0.0                                           # the path doubles back: turn in place
             w_c = float(np.clip(_bearing_error(s, lookahead - pos[:2]), -lim.w_max, lim.w_max))
-        r_e = cfg.vfh.resolve(lim, view.occupancy.resolution)[0]
-        vz_away = _away_vertically(pos, view.occupancy, r_e, lim, cfg.lateral_emergency_to_dwa) \
-            if emergency and vfh_result is not None else None
+        vz_away = None
+        if emergency and vfh_result is not None:
+            r_e = cfg.vfh.resolve(lim, view.occupancy.resolution)[0]
+            vz_away = _away_vertically(pos, view.occupancy, r_e, lim, cfg.lateral_emergency_to_dwa)
         if vz_away is not None:
             v_c, vz_cmd = 0.0, vz_away
             alive = view.neighbour_alive
@@ -417,7 +418,7 @@ class FusionExpert(OnboardPolicy):
         pos = view.state[:3]
         if view.is_leader:
             target = view.goal
-        elif view.leader_state[V] < cfg.leader_stopped_speed:
+        elif _leader_parked(view, cfg):
             target = np.array([goal[0], goal[1], view.z_ref + view.slot_offset[2]])
         else:
             return False
@@ -468,8 +469,10 @@ class FusionExpert(OnboardPolicy):
                                          True, cfg.astar)
                 if trigger is not None:
                     self._plan(view, mem, t, goal_xy, blocked)
-                sight = GlobalPath(np.array([np.clip(pos_xy, *self._raster_box()), np.clip(goal_xy, *self._raster_box())]))
-                mem.goal_visible = not sight.corridor_blocked(inflated, self.raster)
+                if view.is_leader and cfg.astar.heading_target == "visible_goal":
+                    box = self._raster_box()
+                    sight = GlobalPath(np.array([np.clip(pos_xy, *box), np.clip(goal_xy, *box)]))
+                    mem.goal_visible = not sight.corridor_blocked(inflated, self.raster)
         if not mem.path_found:
             return None
         return mem.path.lookahead(pos_xy, cfg.astar.lookahead)
@@ -527,15 +530,15 @@ class FusionExpert(OnboardPolicy):
         c, s_ = math.cos(pred_psi), math.sin(pred_psi)
         goal = pred_xy + np.array([c * offset[0] - s_ * offset[1], s_ * offset[0] + c * offset[1]])
         heading_l = np.array([math.cos(lead[PSI]), math.sin(lead[PSI])])
-        lead_moving = lead[V] >= cfg.leader_stopped_speed
+        lead_moving = not _leader_parked(view, cfg)
         a_j = goal - view.state[:2] + (cfg.k_h * heading_l if lead_moving else 0.0)   # a parked slot is the target
         lookahead = view.state[:2] + a_j
         cl, sl = heading_l
         slot_now = lead[:2] + np.array([cl * offset[0] - sl * offset[1], sl * offset[0] + cl * offset[1]])
         trail = mem.trail
-        if not trail or np.hypot(*(lead[:2] - trail[-1])) >= cfg.trail_spacing:
+        if cfg.rejoin == "trail" and (not trail or np.hypot(*(lead[:2] - trail[-1])) >= cfg.trail_spacing):
             trail.append(lead[:2].copy())
-        far = np.linalg.norm(slot_now - view.state[:2]) > cfg.rejoin_distance or (cfg.rejoin_hidden and slot_hidden)
+        far = slot_hidden or np.linalg.norm(slot_now - view.state[:2]) > cfg.rejoin_distance
         mem.on_path = False
         if far and cfg.rejoin == "astar":
             guide = self._guidance(view, mem, cfg, t, slot_now)
@@ -820,6 +823,11 @@ def _follower_errors(view) -> np.ndarray:
     return np.linalg.norm(view.neighbour_states[alive, :2] - slots[alive], axis=1)
 
 
+def _leader_parked(view, cfg: ExpertConfig) -> bool:
+    """Whether the leader's broadcast speed is below ``leader_stopped_speed`` (its followers dock)."""
+    return bool(view.leader_state[V] < cfg.leader_stopped_speed)
+
+
 def _bearing_error(state, direction) -> float:
     """Signed angle (rad) from the UAV's heading to the horizontal ``direction``."""
     return wrap(math.atan2(direction[1], direction[0]) - state[PSI])
@@ -913,10 +921,8 @@ def _closes_on_movers(pos, vz: float, movers_pos, movers_vel, dwa: DWAConfig, li
     """Whether a vertical move at ``vz`` comes within ``dwa.R_uu`` of a neighbour over the DWA horizon (g6)."""
     if len(movers_pos) == 0 or vz == 0.0:
         return False
-    k = np.arange(1, round(dwa.T_p / lim.dt) + 1)[:, None, None] * lim.dt
-    own = pos[None, None, :] + k * np.array([0.0, 0.0, vz])
-    rel = own - (movers_pos[None] + k * movers_vel[None])
-    return bool(np.linalg.norm(rel, axis=2).min() < dwa.R_uu)
+    n_steps = round(dwa.T_p / lim.dt)
+    return _closest_approach(pos, np.array([0.0, 0.0, vz]), movers_pos, movers_vel, n_steps, lim.dt) < dwa.R_uu
 
 
 def _away_vertically(pos, occ_map, radius, lim, lateral_to_dwa: bool) -> float | None:
