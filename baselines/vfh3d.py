@@ -205,25 +205,24 @@ def update_binary(primary, previous_binary, tau_low: float, tau_high: float) -> 
     """Binary histogram with hysteresis (spec (f4), eq. 18): cells between the thresholds keep their last value."""
     if not 0.0 <= tau_low <= tau_high:
         raise ValueError(f"tau_low={tau_low!r}, tau_high={tau_high!r}: expected 0 <= tau_low <= tau_high")
-    primary = np.asarray(primary, dtype=np.float64)
+    primary = np.ascontiguousarray(primary, dtype=np.float64)
     if previous_binary is None:
-        binary = np.zeros(primary.shape, dtype=np.uint8)
+        previous = np.zeros(primary.shape, dtype=np.uint8)
     else:
         if np.shape(previous_binary) != primary.shape:
             raise ValueError(f"previous_binary: expected shape {primary.shape}, got {np.shape(previous_binary)}")
-        binary = np.array(previous_binary, dtype=np.uint8)
-    binary[primary > tau_high] = 1
-    binary[primary < tau_low] = 0
+        previous = np.ascontiguousarray(previous_binary, dtype=np.uint8)
+    binary = np.empty(primary.shape, dtype=np.uint8)
+    _binary_kernel(primary.ravel(), previous.ravel(), float(tau_low), float(tau_high), binary.ravel())
     return binary
 
 
 @numba.njit(cache=True)
 def _binary_kernel(primary, previous, tau_low, tau_high, out):
-    """``update_binary`` on (N_e, N_z) arrays: 1 above tau_high, 0 below tau_low, else ``previous``."""
-    for e in range(primary.shape[0]):
-        for col in range(primary.shape[1]):
-            h = primary[e, col]
-            out[e, col] = 1 if h > tau_high else (0 if h < tau_low else previous[e, col])
+    """Eq. 18 cell by cell on flat arrays: 1 above tau_high, 0 below tau_low, else ``previous``."""
+    for i in range(primary.size):
+        h = primary[i]
+        out[i] = 1 if h > tau_high else (0 if h < tau_low else previous[i])
 
 
 @numba.njit(cache=True)
@@ -453,7 +452,7 @@ def vfh3d_step(state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos, psi: flo
         if previous.shape != primary.shape:
             raise ValueError(f"previous_binary: expected shape {primary.shape}, got {previous.shape}")
     binary = np.empty((n_e, n_z), dtype=np.uint8)
-    _binary_kernel(primary, previous, float(cfg.tau_low), float(cfg.tau_high), binary)
+    _binary_kernel(primary.ravel(), previous.ravel(), float(cfg.tau_low), float(cfg.tau_high), binary.ravel())
     state.binary = binary
     delta_r, delta_l = _turning(centres, probs, radii, pos, psi, v, limits, cfg.R_w)
     masked = np.empty((n_e, n_z), dtype=np.uint8)
