@@ -519,9 +519,10 @@ def plan_path(blocked_world, raster: Raster, start_xy, goal_xy, inflate_radius: 
     if not result.found:
         return None
     if not cfg.prune:
-        return GlobalPath(raster.to_world(result.path), cfg.window, cfg.allow_corner_cut)
-    corners = raster.to_world(prune_line_of_sight(result.path, inflated, cfg.allow_corner_cut))
-    return GlobalPath(resample(corners, raster.res), cfg.window, cfg.allow_corner_cut)
+        points = raster.to_world(result.path)
+    else:
+        points = resample(raster.to_world(prune_line_of_sight(result.path, inflated, cfg.allow_corner_cut)), raster.res)
+    return GlobalPath(points, cfg.window, cfg.allow_corner_cut)
 
 
 def resample(points, spacing: float) -> np.ndarray:
