@@ -9,12 +9,12 @@ reported as blocked by the corridor check.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import numba
 import numpy as np
-from scipy import ndimage
 
 from uavform_env.config import _check_choice, _check_int, _check_range, _Config
 
@@ -155,15 +155,42 @@ class AStarConfig(_Config):
 def inflate(blocked, radius: float, res: float) -> np.ndarray:
     """Block every cell whose centre lies within ``radius`` (m) of an occupied cell's centre (d1).
 
-    One exact Euclidean distance transform, so the cost does not grow with the radius.
+    A dilation by the disc of cell offsets within ``radius``: the cost follows the occupied cells,
+    not the raster. Offsets are kept by the distance formula of scipy's exact Euclidean distance
+    transform, so both give the same cells (a test compares them).
     """
     b = _as_grid("blocked", blocked)
     _check_range("inflate", "radius", radius, 0.0, None)
     _check_range("inflate", "res", res, 0.0, None, lo_open=True)
-    if not b.any():
-        return b.copy()
-    dist = ndimage.distance_transform_edt(~b, sampling=res)
-    return dist <= radius * (1.0 + 1e-12)
+    out = np.zeros_like(b)
+    _dilate_kernel(b, _disc_offsets(float(radius), float(res)), out)
+    return out
+
+
+@functools.lru_cache(maxsize=16)
+def _disc_offsets(radius: float, res: float) -> np.ndarray:
+    """(K, 2) cell offsets (di, dj) with sqrt((di res)^2 + (dj res)^2) <= radius (1 + 1e-12)."""
+    reach = int(math.floor(radius / res)) + 1
+    di, dj = np.meshgrid(np.arange(-reach, reach + 1), np.arange(-reach, reach + 1), indexing="ij")
+    d = np.sqrt((di * res) ** 2 + (dj * res) ** 2)
+    offsets = np.column_stack([di[d <= radius * (1.0 + 1e-12)], dj[d <= radius * (1.0 + 1e-12)]])
+    offsets.flags.writeable = False
+    return offsets
+
+
+@numba.njit(cache=True)
+def _dilate_kernel(blocked, offsets, out):
+    """Mark in ``out`` every in-bounds cell at one of ``offsets`` from a blocked cell."""
+    n_i, n_j = blocked.shape
+    for i in range(n_i):
+        for j in range(n_j):
+            if not blocked[i, j]:
+                continue
+            for k in range(offsets.shape[0]):
+                a = i + offsets[k, 0]
+                c = j + offsets[k, 1]
+                if 0 <= a < n_i and 0 <= c < n_j:
+                    out[a, c] = True
 
 
 def snap_to_free(blocked, cell) -> tuple[int, int] | None:

@@ -639,25 +639,46 @@ def _columns_without_gap(occ_map, centres: np.ndarray, z_min: float, z_max: floa
     ``centres`` are read, so the cost follows the obstacles, not the map.
     """
     res = occ_map.resolution
-    inside = (centres[:, 2] >= z_min - res) & (centres[:, 2] <= z_max + res)
-    if not inside.any():
-        return np.empty((0, 2))
-    n_y = occ_map.shape[1]
-    keys = np.unique(np.floor((centres[inside, :2] - occ_map.origin[:2]) / res).astype(np.int64) @ np.array([n_y, 1]))
-    ij = np.column_stack([keys // n_y, keys % n_y])
-    k_lo = max(0, int(math.ceil((z_min - occ_map.origin[2]) / res - 0.5)))
-    k_hi = min(occ_map.shape[2], int(math.floor((z_max - occ_map.origin[2]) / res - 0.5)) + 1)
-    l_occ = occ_map.cfg.logodds(occ_map.cfg.p_occ)
-    cols = occ_map.logodds[ij[:, 0], ij[:, 1], k_lo:k_hi]
-    occupied = cols >= l_occ                                            # NaN (unknown) compares False
-    n_z = cols.shape[1]
-    run = np.cumsum(occupied, axis=1) + np.arange(len(cols))[:, None] * (n_z + 1)   # one id per run and column
-    open_ = ~occupied
-    length = np.bincount(run[open_], minlength=len(cols) * (n_z + 1))
-    seen = np.bincount(run[open_], weights=(cols < l_occ)[open_], minlength=len(cols) * (n_z + 1))
-    way = (length * res >= gap - 1e-9) & (seen > 0)
-    blocked = ~way.reshape(len(cols), n_z + 1).any(axis=1)
-    return occ_map.origin[:2] + (ij[blocked] + 0.5) * res
+    origin = occ_map.origin
+    k_lo = max(0, int(math.ceil((z_min - origin[2]) / res - 0.5)))
+    k_hi = min(occ_map.shape[2], int(math.floor((z_max - origin[2]) / res - 0.5)) + 1)
+    out = np.empty((len(centres), 2))
+    n = _gapless_columns_kernel(occ_map.logodds, np.ascontiguousarray(centres, dtype=np.float64), origin, res,
+                                z_min - res, z_max + res, k_lo, k_hi, np.float32(occ_map.cfg.logodds(occ_map.cfg.p_occ)),
+                                gap, out)
+    return out[:n]
+
+
+@numba.njit(cache=True)
+def _gapless_columns_kernel(logodds, centres, origin, res, z_lo, z_hi, k_lo, k_hi, l_occ, gap, out):
+    """Write into ``out`` the x, y of each column (once) of a voxel of ``centres`` within [z_lo, z_hi] whose
+    layers k_lo..k_hi-1 hold no run of non-occupied voxels >= ``gap`` with a known-free voxel; return the count."""
+    visited = np.zeros((logodds.shape[0], logodds.shape[1]), dtype=np.bool_)
+    n = 0
+    for m in range(centres.shape[0]):
+        if not z_lo <= centres[m, 2] <= z_hi:
+            continue
+        i = int(math.floor((centres[m, 0] - origin[0]) / res))
+        j = int(math.floor((centres[m, 1] - origin[1]) / res))
+        if visited[i, j]:
+            continue
+        visited[i, j] = True
+        length, seen, way = 0, False, False
+        for k in range(k_lo, k_hi):
+            value = logodds[i, j, k]
+            if value >= l_occ:                                  # NaN (unknown) compares False
+                length, seen = 0, False
+                continue
+            length += 1
+            seen = seen or value < l_occ
+            if seen and length * res >= gap - 1e-9:
+                way = True
+                break
+        if not way:
+            out[n, 0] = origin[0] + (i + 0.5) * res
+            out[n, 1] = origin[1] + (j + 0.5) * res
+            n += 1
+    return n
 
 
 def _level_way(r, cfg: ExpertConfig, target_dir: np.ndarray) -> bool:

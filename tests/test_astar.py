@@ -224,6 +224,17 @@ def test_inflation_matches_brute_force_distances():
     assert np.array_equal(inflate(blocked, radius, res).ravel(), d <= radius)
 
 
+@pytest.mark.parametrize("seed", range(20))
+def test_inflation_matches_scipy_distance_transform(seed):
+    """The independent reference: scipy's exact Euclidean distance transform, thresholded the same way."""
+    rng = np.random.default_rng(seed)
+    blocked = rng.random(tuple(rng.integers(1, 40, size=2))) < rng.uniform(0.0, 0.3)
+    res = rng.uniform(0.1, 1.0)
+    radius = int(rng.integers(0, 4)) * res if seed % 2 else rng.uniform(0.0, 2.0)   # odd seeds: on a cell centre
+    expected = ndimage.distance_transform_edt(~blocked, sampling=res) <= radius * (1.0 + 1e-12)
+    assert np.array_equal(inflate(blocked, radius, res), expected if blocked.any() else blocked)
+
+
 def test_snap_to_free_known_answers():
     blocked = np.ones((5, 5), dtype=bool)
     blocked[0, 4] = False

@@ -354,6 +354,40 @@ def test_raster_needs_a_seen_way_through_a_column():
     assert not column_blocked([], [])                              # nothing occupied: no column at all
 
 
+def columns_reference(occ, centres, z_min, z_max, gap):
+    """The same rule vectorised over whole columns (runs labelled by a cumulative sum), as a cross-check."""
+    res, origin = occ.resolution, occ.origin
+    inside = (centres[:, 2] >= z_min - res) & (centres[:, 2] <= z_max + res)
+    ij = np.unique(np.floor((centres[inside, :2] - origin[:2]) / res).astype(np.int64), axis=0).reshape(-1, 2)
+    k_lo = max(0, int(math.ceil((z_min - origin[2]) / res - 0.5)))
+    k_hi = min(occ.shape[2], int(math.floor((z_max - origin[2]) / res - 0.5)) + 1)
+    cols = occ.logodds[ij[:, 0], ij[:, 1], k_lo:k_hi]
+    l_occ = np.float32(occ.cfg.logodds(occ.cfg.p_occ))
+    occupied = cols >= l_occ
+    n_z = cols.shape[1]
+    run = np.cumsum(occupied, axis=1) + np.arange(len(cols))[:, None] * (n_z + 1)
+    length = np.bincount(run[~occupied], minlength=len(cols) * (n_z + 1))
+    seen = np.bincount(run[~occupied], weights=(cols < l_occ)[~occupied], minlength=len(cols) * (n_z + 1))
+    blocked = ~((length * res >= gap - 1e-9) & (seen > 0)).reshape(len(cols), n_z + 1).any(axis=1)
+    return origin[:2] + (ij[blocked] + 0.5) * res
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_raster_columns_match_a_vectorised_reference(seed):
+    rng = np.random.default_rng(seed)
+    occ = OccupancyMap((0.0, 0.0, 0.0), (12, 10, 40), 0.2)
+    for _ in range(60):                                           # random rays: hits, and the free space they cross
+        start = rng.uniform((0.1, 0.1, 0.1), (2.3, 1.9, 7.9))
+        ends = np.clip(start + rng.normal(scale=0.6, size=(20, 3)), 0.05, (2.35, 1.95, 7.95))
+        occ.integrate(start, ends, rng.random(20) < 0.8)
+    centres, _ = occ.occupied_in_sphere((1.2, 1.0, 4.0), 10.0)
+    z_min, z_max, gap = rng.uniform(0.0, 2.0), rng.uniform(5.0, 8.5), rng.uniform(0.4, 2.5)
+    got = _columns_without_gap(occ, centres, z_min, z_max, gap)
+    expected = columns_reference(occ, centres, z_min, z_max, gap)
+    assert 0 < len(expected) < len(np.unique(np.floor(centres[:, :2] / 0.2), axis=0))   # both outcomes occur
+    assert np.array_equal(got[np.lexsort(got.T[::-1])], expected)
+
+
 def test_segment_clearance_is_the_distance_to_the_segment():
     centres = np.array([[1.0, 1.0, 0.0], [5.0, 0.0, 0.0]])
     a, b = np.zeros(3), np.array([2.0, 0.0, 0.0])

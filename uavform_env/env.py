@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 from gymnasium import spaces
@@ -321,21 +322,31 @@ class FormationEnv(ParallelEnv):
         if self.scenario is None:
             raise ValueError("onboard: call reset() first")
         i = self.agent_name_mapping[agent]
-        others = np.array([j for j in range(self.n_uavs) if j != i], dtype=np.int64)
-
-        def ro(a):
-            a = np.array(a)
-            a.flags.writeable = False
-            return a
-
+        snap = self._onboard_snapshot()
+        others = snap.others[i]
         return OnboardView(
-            agent=agent, index=i, is_leader=(i == 0), state=ro(self.states[i]), goal=ro(self.goal),
-            slot=ro(self._broadcast_slots()[i]), slot_offset=ro(self.offsets[i]), offsets=ro(self.offsets),
-            z_ref=self.config.formation.z_ref, leader_state=ro(self.broadcast[0] if i else self.states[0]),
-            neighbour_ids=ro(others), neighbour_states=ro(self.broadcast[others]),
-            neighbour_alive=ro(self.active[others] & self.present[others]), occupancy=self.maps[i].read_only(),
-            prior=self._prior, limits=self.config.uav, config=self.config, step=self.step_count,
-            bounds_lo=ro(self.scenario.bounds_lo), bounds_hi=ro(self.scenario.bounds_hi), crashed=bool(self.crashed[i]))
+            agent=agent, index=i, is_leader=(i == 0), state=snap.states[i], goal=snap.goal, slot=snap.slots[i],
+            slot_offset=snap.offsets[i], offsets=snap.offsets, z_ref=self.config.formation.z_ref,
+            leader_state=snap.broadcast[0] if i else snap.states[0], neighbour_ids=others,
+            neighbour_states=_read_only(snap.broadcast[others]), neighbour_alive=_read_only(snap.alive[others]),
+            occupancy=snap.maps[i], prior=self._prior, limits=self.config.uav, config=self.config,
+            step=self.step_count, bounds_lo=snap.bounds_lo, bounds_hi=snap.bounds_hi, crashed=bool(self.crashed[i]))
+
+    def _onboard_snapshot(self) -> SimpleNamespace:
+        """Read-only copies shared by every agent's view of this step, made once per step (``step`` and
+        ``reset`` replace ``self.broadcast``, which keys the snapshot)."""
+        snap = getattr(self, "_snapshot", None)
+        if snap is None or snap.key is not self.broadcast:
+            n = self.n_uavs
+            snap = SimpleNamespace(
+                key=self.broadcast, states=_read_only(self.states), broadcast=_read_only(self.broadcast),
+                slots=_read_only(self._broadcast_slots()), goal=_read_only(self.goal),
+                offsets=_read_only(self.offsets), alive=_read_only(self.active & self.present),
+                others=[_read_only(np.array([j for j in range(n) if j != i], dtype=np.int64)) for i in range(n)],
+                maps=[m.read_only() for m in self.maps], bounds_lo=_read_only(self.scenario.bounds_lo),
+                bounds_hi=_read_only(self.scenario.bounds_hi))
+            self._snapshot = snap
+        return snap
 
     def state(self) -> np.ndarray:
         lo, hi = np.asarray(self.scenario.bounds_lo), np.asarray(self.scenario.bounds_hi)
@@ -366,3 +377,9 @@ class FormationEnv(ParallelEnv):
             self._renderer.close()
             self._renderer = None
 
+
+def _read_only(a) -> np.ndarray:
+    """A read-only copy: views handed to policies must not alias the env's state."""
+    a = np.array(a)
+    a.flags.writeable = False
+    return a
