@@ -323,12 +323,11 @@ class FormationEnv(ParallelEnv):
             raise ValueError("onboard: call reset() first")
         i = self.agent_name_mapping[agent]
         snap = self._onboard_snapshot()
-        others = snap.others[i]
         return OnboardView(
             agent=agent, index=i, is_leader=(i == 0), state=snap.states[i], goal=snap.goal, slot=snap.slots[i],
             slot_offset=snap.offsets[i], offsets=snap.offsets, z_ref=self.config.formation.z_ref,
-            leader_state=snap.broadcast[0] if i else snap.states[0], neighbour_ids=others,
-            neighbour_states=_read_only(snap.broadcast[others]), neighbour_alive=_read_only(snap.alive[others]),
+            leader_state=snap.broadcast[0] if i else snap.states[0], neighbour_ids=snap.others[i],
+            neighbour_states=snap.neighbour_states[i], neighbour_alive=snap.neighbour_alive[i],
             occupancy=snap.maps[i], prior=self._prior, limits=self.config.uav, config=self.config,
             step=self.step_count, bounds_lo=snap.bounds_lo, bounds_hi=snap.bounds_hi, crashed=bool(self.crashed[i]))
 
@@ -338,11 +337,13 @@ class FormationEnv(ParallelEnv):
         snap = getattr(self, "_snapshot", None)
         if snap is None or snap.key is not self.broadcast:
             n = self.n_uavs
+            others = np.array([[j for j in range(n) if j != i] for i in range(n)], dtype=np.int64).reshape(n, n - 1)
             snap = SimpleNamespace(
                 key=self.broadcast, states=_read_only(self.states), broadcast=_read_only(self.broadcast),
                 slots=_read_only(self._broadcast_slots()), goal=_read_only(self.goal),
-                offsets=_read_only(self.offsets), alive=_read_only(self.active & self.present),
-                others=[_read_only(np.array([j for j in range(n) if j != i], dtype=np.int64)) for i in range(n)],
+                offsets=_read_only(self.offsets), others=_read_only(others),
+                neighbour_states=_read_only(self.broadcast[others]),
+                neighbour_alive=_read_only((self.active & self.present)[others]),
                 maps=[m.read_only() for m in self.maps], bounds_lo=_read_only(self.scenario.bounds_lo),
                 bounds_hi=_read_only(self.scenario.bounds_hi))
             self._snapshot = snap

@@ -161,7 +161,7 @@ class OccupancyMap:
     # ------------------------------------------------------------------ region queries
     def _sphere_args(self, center, radius):
         c = np.asarray(center, dtype=np.float64)
-        if c.shape != (3,) or not np.all(np.isfinite(c)):
+        if c.shape != (3,) or not (math.isfinite(c[0]) and math.isfinite(c[1]) and math.isfinite(c[2])):
             raise ValueError(f"center={center!r}: expected 3 finite coordinates")
         if isinstance(radius, bool) or not np.isfinite(radius) or radius < 0:
             raise ValueError(f"radius={radius!r}: expected a finite radius >= 0")
