@@ -254,6 +254,7 @@ class FusionExpert(OnboardPolicy):
         super().reset(env, seed)
         base = self.env
         self.memory = {a: _UAVMemory() for a in base.possible_agents}
+        self._leader_prediction = (None, None)
         lead = base.onboard(base.possible_agents[0])
         self.raster = _raster_for(lead, self.config.astar.res_g)
         if lead.prior.kind != "none" and self._plan(lead, self.memory[lead.agent], 0.0, lead.goal[:2]) is None:
@@ -265,12 +266,12 @@ class FusionExpert(OnboardPolicy):
         base = getattr(env, "unwrapped", env)
         if getattr(self, "env", None) is not base:
             raise ValueError("policy: act() called with an env this policy was not reset() on; call reset(env, seed)")
-        out = {}
-        for agent in base.agents:
-            cfg = self.config if weights is None or agent not in weights else self.config.with_weights(weights[agent])
-            cmd = self._cycle(base.onboard(agent), cfg)
-            out[agent] = commands_to_actions(cmd, base.config.uav)
-        return out
+        agents = list(base.agents)
+        if not agents:
+            return {}
+        commands = np.array([self._cycle(base.onboard(agent), self.config if weights is None or agent not in weights
+                                         else self.config.with_weights(weights[agent])) for agent in agents])
+        return dict(zip(agents, commands_to_actions(commands, base.config.uav)))
 
     # ------------------------------------------------------------------ one UAV's cycle (g3)
     def _cycle(self, view, cfg: ExpertConfig) -> np.ndarray:
@@ -283,15 +284,15 @@ class FusionExpert(OnboardPolicy):
             return np.zeros(3)
 
         z_slot = view.z_ref + view.slot_offset[2]
-        if view.is_leader and np.linalg.norm(view.goal[:2] - pos[:2]) < cfg.arrive_radius:
+        if view.is_leader and math.hypot(view.goal[0] - pos[0], view.goal[1] - pos[1]) < cfg.arrive_radius:
             mem.arrived = True
         if view.is_leader and mem.arrived:
             self.diagnostics[view.agent] = {"mode": mem.mode, "stuck": False, "arrived": True, "replans": mem.replans}
             w_c = 0.0
             if cfg.park_turn:
                 psi_park = _park_heading(view, mem, cfg)
-                w_c = float(np.clip(wrap(psi_park - s[PSI]), -lim.w_max, lim.w_max))
-            return np.array([0.0, w_c, float(np.clip(cfg.k_z * (z_slot - pos[2]), -lim.vz_max, lim.vz_max))])
+                w_c = _clamp(wrap(psi_park - s[PSI]), -lim.w_max, lim.w_max)
+            return np.array([0.0, w_c, _clamp(cfg.k_z * (z_slot - pos[2]), -lim.vz_max, lim.vz_max)])
         level = cfg.dwa_map_level
         vox_size = view.occupancy.resolution * (2 ** level)
         reach = lim.v_max * cfg.dwa.T_p + cfg.dwa.D_cap + lim.r_uav + vox_size
@@ -302,7 +303,7 @@ class FusionExpert(OnboardPolicy):
             if goal is None:                                    # unreachable: hold position safely
                 self.diagnostics[view.agent] = {"mode": mem.mode, "stuck": True, "unreachable": True,
                                                 "replans": mem.replans}
-                return np.array([0.0, 0.0, float(np.clip(cfg.k_z * (z_slot - pos[2]), -lim.vz_max, lim.vz_max))])
+                return np.array([0.0, 0.0, _clamp(cfg.k_z * (z_slot - pos[2]), -lim.vz_max, lim.vz_max)])
         else:
             slot_hidden = cfg.rejoin_hidden and not _segment_clear(obstacles, pos, view.slot, lim.r_uav + radius)
             goal, lookahead, v_cap, v_ref = self._follower_target(view, mem, cfg, t, slot_hidden)
@@ -314,7 +315,7 @@ class FusionExpert(OnboardPolicy):
 
         fence = _geofence(pos, reach, view.bounds_lo, view.bounds_hi, cfg.geofence_spacing)
 
-        vz_cmd = float(np.clip(cfg.k_z * (z_slot - pos[2]), -lim.vz_max, lim.vz_max))
+        vz_cmd = _clamp(cfg.k_z * (z_slot - pos[2]), -lim.vz_max, lim.vz_max)
         heading_goal = goal
         vfh_result = None
         emergency = False
@@ -327,7 +328,7 @@ class FusionExpert(OnboardPolicy):
             gap_z = _gap_altitude(view, lookahead, z_slot, cfg)
             z_goal = z_slot if gap_z is None else gap_z
             target = np.array([lookahead[0], lookahead[1], z_goal])
-            if np.linalg.norm(target - pos) < 1e-6:             # on the target: 3D VFH+ looks along the heading
+            if math.dist(target, pos) < 1e-6:             # on the target: 3D VFH+ looks along the heading
                 target = pos + np.array([math.cos(s[PSI]), math.sin(s[PSI]), 0.0])
             close = view.neighbour_alive & (np.linalg.norm(movers_pos - pos, axis=1) < cfg.vfh_neighbour_radius)
             vfh_result = vfh3d_step(mem.vfh, cfg.vfh, lim, pos, s[PSI], s[V], s[VZ], target - pos, centres, probs,
@@ -338,7 +339,7 @@ class FusionExpert(OnboardPolicy):
                                                   + view.occupancy.resolution * math.sqrt(3.0) / 2.0))
             mode = self._debounced_mode(mem, vfh_result, cfg, level_way, gap_z is not None)
             if mode == CLIMB and gap_z is not None:
-                vz_cmd = float(np.clip(cfg.k_gap * (gap_z - pos[2]), -lim.vz_max, lim.vz_max))
+                vz_cmd = _clamp(cfg.k_gap * (gap_z - pos[2]), -lim.vz_max, lim.vz_max)
                 v_cap = cfg.gap_speed if v_cap is None else min(v_cap, cfg.gap_speed)
                 if level > 0:                       # a gap leaves centimetres: use the leaf voxels
                     obstacles, _ = view.occupancy.occupied_in_sphere(pos, reach, level=0)
@@ -377,23 +378,23 @@ class FusionExpert(OnboardPolicy):
         if not res.admissible:
             mem.stuck_time += lim.dt
             bearing = math.atan2(heading_goal[1] - pos[1], heading_goal[0] - pos[0])
-            w_c = float(np.clip(wrap(bearing - s[PSI]), -lim.w_max, lim.w_max))
+            w_c = _clamp(wrap(bearing - s[PSI]), -lim.w_max, lim.w_max)
             if cfg.use_vfh and mem.stuck_time >= cfg.T_stuck and vfh_result is not None:
                 vz_cmd = _vertical_escape(vfh_result, lim)
         else:
             mem.stuck_time = 0.0
         to_goal = (view.goal[:2] if view.is_leader else goal) - pos[:2]
         if view.is_leader:
-            docking = np.linalg.norm(to_goal) < cfg.dock_radius
+            docking = math.hypot(to_goal[0], to_goal[1]) < cfg.dock_radius
         else:
             docking = (_leader_parked(view, cfg) and s[V] < cfg.leader_stopped_speed
-                       and np.linalg.norm(to_goal) >= view.config.formation.e_f / 2)
+                       and math.hypot(to_goal[0], to_goal[1]) >= view.config.formation.e_f / 2)
         if docking and abs(_bearing_error(s, to_goal)) > cfg.dock_turn_angle:
             v_c = 0.0                                           # turn in place toward a parked slot
-            w_c = float(np.clip(_bearing_error(s, to_goal), -lim.w_max, lim.w_max))
+            w_c = _clamp(_bearing_error(s, to_goal), -lim.w_max, lim.w_max)
         elif mem.on_path and abs(_bearing_error(s, lookahead - pos[:2])) > cfg.reverse_turn_angle:
             v_c = 0.0                                           # the path doubles back: turn in place
-            w_c = float(np.clip(_bearing_error(s, lookahead - pos[:2]), -lim.w_max, lim.w_max))
+            w_c = _clamp(_bearing_error(s, lookahead - pos[:2]), -lim.w_max, lim.w_max)
         vz_away = None
         if emergency and vfh_result is not None:
             r_e = cfg.vfh.resolve(lim, view.occupancy.resolution)[0]
@@ -422,14 +423,14 @@ class FusionExpert(OnboardPolicy):
             target = np.array([goal[0], goal[1], view.z_ref + view.slot_offset[2]])
         else:
             return False
-        return bool(np.linalg.norm(target[:2] - pos[:2]) < cfg.dock_radius
+        return bool(math.hypot(target[0] - pos[0], target[1] - pos[1]) < cfg.dock_radius
                     and _segment_clear(obstacles, pos, target, view.limits.r_uav + view.limits.r_safe + radius))
 
     def _no_progress(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float) -> bool:
         """Whether the leader has gained less than ``trail_spacing`` on the goal in the last ``stuck_window`` s."""
         if not view.is_leader:
             return False
-        dist = float(np.linalg.norm(view.goal[:2] - view.state[:2]))
+        dist = math.hypot(view.goal[0] - view.state[0], view.goal[1] - view.state[1])
         if dist < mem.best_goal_distance - cfg.trail_spacing:
             mem.best_goal_distance, mem.last_progress_time = dist, t
         return t - mem.last_progress_time >= cfg.stuck_window
@@ -448,7 +449,7 @@ class FusionExpert(OnboardPolicy):
         scale = 1.0
         if errors.size:
             mean_err = float(errors.mean())
-            scale = float(np.clip(1.0 - (mean_err - cfg.e0) / (cfg.e1 - cfg.e0), cfg.min_leader_scale, 1.0))
+            scale = _clamp(1.0 - (mean_err - cfg.e0) / (cfg.e1 - cfg.e0), cfg.min_leader_scale, 1.0)
         return goal, lookahead, cfg.leader_speed_cap * lim.v_max * scale, None
 
     def _guidance(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float, goal_xy: np.ndarray):
@@ -461,7 +462,7 @@ class FusionExpert(OnboardPolicy):
         if mem.replans == 0 or t - mem.last_check_time >= cfg.replan_check_period:
             mem.last_check_time = t
             blocked = self._blocked_raster(view, cfg)
-            if mem.replans == 0 or mem.path is None or np.linalg.norm(goal_xy - mem.plan_goal) > cfg.astar.d_replan:
+            if mem.replans == 0 or mem.path is None or math.dist(goal_xy, mem.plan_goal) > cfg.astar.d_replan:
                 self._plan(view, mem, t, goal_xy, blocked)
             else:
                 inflated = inflate(blocked, lim.r_uav + lim.r_safe, self.raster.res)
@@ -526,7 +527,10 @@ class FusionExpert(OnboardPolicy):
                 mem.column_until = t + cfg.column_hold
             if t < mem.column_until:
                 offset = column_offset
-        pred_xy, pred_psi = _predict_unicycle(lead, cfg.dwa.T_p, lim.dt)
+        key = (lead.tobytes(), cfg.dwa.T_p)              # every follower predicts the same broadcast: once a step
+        if self._leader_prediction[0] != key:
+            self._leader_prediction = key, _predict_unicycle(lead, cfg.dwa.T_p, lim.dt)
+        pred_xy, pred_psi = self._leader_prediction[1]
         c, s_ = math.cos(pred_psi), math.sin(pred_psi)
         goal = pred_xy + np.array([c * offset[0] - s_ * offset[1], s_ * offset[0] + c * offset[1]])
         heading_l = np.array([math.cos(lead[PSI]), math.sin(lead[PSI])])
@@ -538,7 +542,7 @@ class FusionExpert(OnboardPolicy):
         trail = mem.trail
         if cfg.rejoin == "trail" and (not trail or np.hypot(*(lead[:2] - trail[-1])) >= cfg.trail_spacing):
             trail.append(lead[:2].copy())
-        far = slot_hidden or np.linalg.norm(slot_now - view.state[:2]) > cfg.rejoin_distance
+        far = slot_hidden or math.hypot(slot_now[0] - view.state[0], slot_now[1] - view.state[1]) > cfg.rejoin_distance
         mem.on_path = False
         if far and cfg.rejoin == "astar":
             guide = self._guidance(view, mem, cfg, t, slot_now)
@@ -560,13 +564,16 @@ class FusionExpert(OnboardPolicy):
         if not lead_moving:                                     # closing on a parked slot, from any side
             to_slot = slot_now - view.state[:2]
             e_par = float(np.linalg.norm(to_slot)) * max(0.0, math.cos(_bearing_error(view.state, to_slot)))
-        v_ref = float(np.clip(lead[V] + cfg.k_f * e_par, 0.0, lim.v_max))
+        v_ref = _clamp(lead[V] + cfg.k_f * e_par, 0.0, lim.v_max)
         return goal, lookahead, None, v_ref
 
     # ------------------------------------------------------------------ neighbours (g6)
     def _neighbours(self, view, cfg: ExpertConfig):
         ns = view.neighbour_states
-        vel = np.column_stack([ns[:, V] * np.cos(ns[:, PSI]), ns[:, V] * np.sin(ns[:, PSI]), ns[:, VZ]])
+        vel = np.empty((len(ns), 3))
+        vel[:, 0] = ns[:, V] * np.cos(ns[:, PSI])
+        vel[:, 1] = ns[:, V] * np.sin(ns[:, PSI])
+        vel[:, 2] = ns[:, VZ]
         pos = ns[:, :3] + vel * view.limits.dt                             # broadcasts are one cycle old
         if not cfg.neighbour_prediction:
             vel = np.zeros_like(vel)
@@ -723,7 +730,7 @@ def _gap_altitude(view, target_xy, z_pref: float, cfg: ExpertConfig) -> float | 
     res = occ.resolution
     pos = view.state[:3]
     d = np.asarray(target_xy, dtype=np.float64) - pos[:2]
-    dist = float(np.hypot(d[0], d[1]))
+    dist = math.hypot(d[0], d[1])
     if dist < 1e-6:
         return None
     ts = np.arange(res, min(cfg.gap_lookahead, dist + res), res)
@@ -849,6 +856,11 @@ def _leader_parked(view, cfg: ExpertConfig) -> bool:
     return bool(view.leader_state[V] < cfg.leader_stopped_speed)
 
 
+def _clamp(x: float, lo: float, hi: float) -> float:
+    """``x`` limited to [lo, hi] (np.clip's result for one number, without its array overhead)."""
+    return float(min(max(x, lo), hi))
+
+
 def _bearing_error(state, direction) -> float:
     """Signed angle (rad) from the UAV's heading to the horizontal ``direction``."""
     return wrap(math.atan2(direction[1], direction[0]) - state[PSI])
@@ -857,7 +869,7 @@ def _bearing_error(state, direction) -> float:
 def _pursuit_cap(state, point, w_max: float, v_cap: float) -> float:
     """``v_cap`` lowered to the speed at which the turn-rate limit still steers onto ``point`` (pure pursuit)."""
     d = point - state[:2]
-    dist = float(np.hypot(d[0], d[1]))
+    dist = math.hypot(d[0], d[1])
     theta = abs(_bearing_error(state, d)) if dist > 1e-9 else 0.0
     reach = dist / 2.0 if theta >= math.pi / 2 else dist / (2.0 * math.sin(theta)) if theta > 1e-9 else math.inf
     return min(v_cap, w_max * reach)
@@ -909,7 +921,7 @@ def _park_heading(view, mem: _UAVMemory, cfg: ExpertConfig, n: int = 72) -> floa
 def _climb_rate(elevation: float, v: float, dz_goal: float, cfg: ExpertConfig, lim) -> float:
     """Vertical speed of CLIMB along 3D VFH+'s elevation; with ``climb_target_limit``, when that climb heads
     for the target altitude (error ``dz_goal``) it is at most ``k_z * |dz_goal|``, so it does not overshoot."""
-    vz = float(np.clip(max(v, 0.3) * math.tan(elevation), -lim.vz_max, lim.vz_max))
+    vz = _clamp(max(v, 0.3) * math.tan(elevation), -lim.vz_max, lim.vz_max)
     if cfg.climb_target_limit and vz * dz_goal > 0.0:
         vz = math.copysign(min(abs(vz), cfg.k_z * abs(dz_goal)), vz)
     return vz
