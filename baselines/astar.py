@@ -30,7 +30,7 @@ def _check_bool(owner: str, name: str, value) -> None:
 
 def _as_point(name: str, xy) -> np.ndarray:
     p = np.asarray(xy, dtype=np.float64)
-    if p.shape != (2,) or not np.all(np.isfinite(p)):
+    if p.shape != (2,) or not (math.isfinite(p[0]) and math.isfinite(p[1])):
         raise ValueError(f"{name}={xy!r}: expected 2 finite coordinates (x, y)")
     return p
 
