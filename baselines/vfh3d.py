@@ -237,14 +237,14 @@ def _select_kernel(masked, win, units, refs, weights, extra, cell, window_open):
     The row pass copies the row into a buffer padded with its wrapped ends, so the slide needs no
     index wrapping.
     The cost of an open cell is extra[cell] + sum_k weights[k] * angle(cell, refs[k]) / cell, with
-    weights > 0 in decreasing order. Cells whose first term alone exceeds the best cost so far are
-    skipped with one dot product (extra >= 0, so every term is >= 0), which saves most arc cosines
-    in open space.
+    weights > 0 in decreasing order; an empty ``extra`` adds nothing (no 20 kB of zeros to fill and
+    read). Cells whose first term alone exceeds the best cost so far are skipped with one dot product
+    (extra >= 0, so every term is >= 0), which saves most arc cosines in open space.
     """
     n_e, n_z = masked.shape
     span = 2 * win + 1
     ring = np.empty(n_z + span - 1, dtype=np.int64)  # ring[win + col] = closed flag of column col
-    row_closed = np.empty((n_e, n_z), dtype=np.int64)  # closed cells among columns col - win .. col + win
+    row_closed = np.empty((n_e, n_z), dtype=np.uint8)  # a closed cell among columns col - win .. col + win
     for e in range(n_e):
         for col in range(n_z):
             ring[win + col] = masked[e, col] != 0
@@ -256,12 +256,12 @@ def _select_kernel(masked, win, units, refs, weights, extra, cell, window_open):
             closed += ring[s]
         for col in range(n_z):
             closed += ring[col + span - 1]
-            row_closed[e, col] = closed
+            row_closed[e, col] = closed != 0
             closed -= ring[col]
-    window_closed = np.zeros(n_z, dtype=np.int64)  # rows with row_closed > 0 among rows e - win .. e + win
+    window_closed = np.zeros(n_z, dtype=np.int64)  # rows with row_closed among rows e - win .. e + win
     for r in range(min(win, n_e - 1) + 1):
         for col in range(n_z):
-            window_closed[col] += row_closed[r, col] != 0
+            window_closed[col] += row_closed[r, col]
     n_open, best_e, best_z, best_cost = 0, -1, -1, np.inf
     prune_dot = -2.0  # cells with dot(unit, refs[0]) below this cannot beat best_cost
     for e in range(n_e):
@@ -271,7 +271,7 @@ def _select_kernel(masked, win, units, refs, weights, extra, cell, window_open):
             if not free:
                 continue
             n_open += 1
-            cost = extra[e, col]
+            cost = extra[e, col] if extra.size else 0.0
             for k in range(refs.shape[0]):
                 dot = units[e, col, 0] * refs[k, 0] + units[e, col, 1] * refs[k, 1] + units[e, col, 2] * refs[k, 2]
                 if k == 0 and dot < prune_dot:
@@ -284,10 +284,10 @@ def _select_kernel(masked, win, units, refs, weights, extra, cell, window_open):
                     prune_dot = math.cos(min(best_cost * cell / weights[0], math.pi))
         if e + win + 1 < n_e:
             for col in range(n_z):
-                window_closed[col] += row_closed[e + win + 1, col] != 0
+                window_closed[col] += row_closed[e + win + 1, col]
         if e - win >= 0:
             for col in range(n_z):
-                window_closed[col] -= row_closed[e - win, col] != 0
+                window_closed[col] -= row_closed[e - win, col]
     return n_open, best_e, best_z, best_cost
 
 
@@ -302,13 +302,8 @@ def _zeros_u8(n_e: int, n_z: int) -> np.ndarray:
     return zeros
 
 
-@functools.lru_cache(maxsize=8)
-def _zeros(n_e: int, n_z: int) -> np.ndarray:
-    """A shared read-only zero histogram: the no-extra-cost input of ``open_cells``, the unread primary of
-    ``select_direction`` when k4 = 0."""
-    zeros = np.zeros((n_e, n_z))
-    zeros.flags.writeable = False
-    return zeros
+_NO_NEIGHBOURS = np.zeros((0, 3))  # the neighbour positions of ``_cycle_kernel`` when there are none
+_NONE = np.zeros((0, 0))  # no extra cost (``open_cells``), no primary (``select_direction`` when k4 = 0)
 
 
 def open_cells(masked, win: int) -> np.ndarray:
@@ -320,7 +315,7 @@ def open_cells(masked, win: int) -> np.ndarray:
         raise ValueError(f"win={win!r}: expected a non-negative integer")
     units = cell_geometry(math.pi / masked.shape[0])[2]
     window_open = np.empty(masked.shape, dtype=np.bool_)
-    _select_kernel(masked, win, units, np.zeros((0, 3)), np.zeros(0), _zeros(*masked.shape), 1.0, window_open)
+    _select_kernel(masked, win, units, np.zeros((0, 3)), np.zeros(0), _NONE, 1.0, window_open)
     return window_open
 
 
@@ -431,7 +426,7 @@ def _choose_kernel(masked, primary, directions, gains, k4, win, units, cell):
         _passage_kernel(primary, current_row, current_col, passage)
         extra = k4 * passage / (1.0 + passage.max())
     else:
-        extra = np.zeros((n_e, n_z))
+        extra = np.zeros((0, 0))
     window_open = np.empty((n_e, n_z), dtype=np.bool_)
     return _select_kernel(masked, win, units, refs, merged[:n].copy(), extra, cell, window_open)
 
@@ -451,7 +446,7 @@ def select_direction(masked, target_dir, current_dir, previous_dir, cfg: VFHConf
         raise ValueError(f"masked: expected shape {expected} for alpha_h, got {masked.shape}")
     directions, gains = _references(target_dir, current_dir, previous_dir, cfg)
     if not cfg.k4:
-        primary = _zeros(*expected)  # unread
+        primary = _NONE
     elif primary is None:
         raise ValueError("primary: the primary histogram is needed when VFHConfig.k4 > 0")
     else:
@@ -464,21 +459,33 @@ def select_direction(masked, target_dir, current_dir, previous_dir, cfg: VFHConf
 
 
 @numba.njit(cache=True)
-def _cycle_kernel(centres, probs, radii, pos, previous, psi, r_t, e_max, directions, gains, k4, win, units, cell, R_w,
-                  a, b, paper_floor, tau_low, tau_high, z_min, z_max, primary, binary, masked):
-    """Stages (f1)-(f7) in one call, into ``primary``, ``binary`` and ``masked``; (emergency, n_open, row, column).
+def _cycle_kernel(voxels, voxel_probs, neighbours, r_e, r_neighbour, pos, previous, psi, r_t, e_max, directions, gains,
+                  k4, win, units, cell, R_w, a, b, paper_floor, tau_low, tau_high, z_min, z_max):
+    """Stages (f1)-(f7) in one call: (emergency, n_open, row, column, primary, binary, masked).
 
-    The stage kernels are called directly: ``vfh3d_step`` builds their inputs, so the wrappers'
-    checks (primary_histogram, update_binary, masked_histogram) hold by construction, and one
-    dispatch replaces one per stage.
+    Neighbours join the voxels as pseudo-voxels with o = 1 and radius ``r_neighbour``. The stage
+    kernels are called directly: ``vfh3d_step`` builds their inputs, so the wrappers' checks
+    (primary_histogram, update_binary, masked_histogram) hold by construction. One dispatch, and
+    no array built in Python, since each numpy call there costs microseconds on cold caches.
     """
-    n_e, n_z = primary.shape
+    m, k = voxels.shape[0], neighbours.shape[0]
+    centres = np.empty((m + k, 3))
+    centres[:m] = voxels
+    centres[m:] = neighbours
+    probs = np.ones(m + k)
+    probs[:m] = voxel_probs
+    radii = np.full(m + k, r_e)
+    radii[m:] = r_neighbour
+    n_e, n_z = units.shape[0], units.shape[1]
+    primary = np.zeros((n_e, n_z))
+    binary = np.empty((n_e, n_z), dtype=np.uint8)
+    masked = np.empty((n_e, n_z), dtype=np.uint8)
     emergency = _primary_kernel(centres, probs, radii, pos, cell, n_e, n_z, R_w, a, b, paper_floor, 0.0, primary)
     _binary_kernel(primary.ravel(), previous.ravel(), tau_low, tau_high, binary.ravel())
     delta_r, delta_l = _turning_kernel(centres, probs, radii, pos, psi, r_t, R_w)
     _mask_kernel(binary, psi, delta_r, delta_l, e_max, pos[2], R_w, z_min, z_max, cell, masked)
     n_open, row, col, _ = _choose_kernel(masked, primary, directions, gains, k4, win, units, cell)
-    return emergency, n_open, row, col
+    return emergency, n_open, row, col, primary, binary, masked
 
 
 def vfh3d_step(state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos, psi: float, v: float, vz: float,
@@ -496,12 +503,10 @@ def vfh3d_step(state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos, psi: flo
     if pos.shape != (3,) or probs.shape != centres.shape[:1]:
         raise ValueError(f"pos {pos.shape}, voxel_centres {centres.shape}, voxel_probs {probs.shape}: "
                          "expected (3,), (M, 3) and (M,)")
-    radii = np.full(centres.shape[0], r_e)
-    if neighbour_positions is not None and len(neighbour_positions):
-        others = np.asarray(neighbour_positions, dtype=np.float64).reshape(-1, 3)
-        centres = np.concatenate([centres, others])
-        probs = np.concatenate([probs, np.ones(others.shape[0])])
-        radii = np.concatenate([radii, np.full(others.shape[0], r_e + extra)])
+    if neighbour_positions is None or not len(neighbour_positions):
+        neighbours = _NO_NEIGHBOURS
+    else:
+        neighbours = np.asarray(neighbour_positions, dtype=np.float64).reshape(-1, 3)
     n_e, n_z = _shape(cfg.alpha_h)
     if state.binary is None:
         previous = _zeros_u8(n_e, n_z)
@@ -515,13 +520,10 @@ def vfh3d_step(state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos, psi: flo
     current_dir = (math.cos(psi) * math.cos(gamma), math.sin(psi) * math.cos(gamma), math.sin(gamma))
     directions, gains = _references(target_dir, current_dir, state.previous_dir, cfg)
     elevation, azimuth, units = cell_geometry(cfg.alpha_h)
-    primary = np.zeros((n_e, n_z))
-    binary = np.empty((n_e, n_z), dtype=np.uint8)
-    masked = np.empty((n_e, n_z), dtype=np.uint8)
-    emergency, n_candidates, row, col = _cycle_kernel(
-        centres, probs, radii, pos, previous, float(psi), r_t, float(e_max), directions, gains, float(cfg.k4), cfg.win,
-        units, float(cfg.alpha_h), float(cfg.R_w), float(a), float(b), cfg.enlarge_mode == "paper_floor",
-        float(cfg.tau_low), float(cfg.tau_high), limits.z_min, limits.z_max, primary, binary, masked)
+    emergency, n_candidates, row, col, primary, binary, masked = _cycle_kernel(
+        centres, probs, neighbours, float(r_e), float(r_e + extra), pos, previous, float(psi), r_t, float(e_max),
+        directions, gains, float(cfg.k4), cfg.win, units, float(cfg.alpha_h), float(cfg.R_w), float(a), float(b),
+        cfg.enlarge_mode == "paper_floor", float(cfg.tau_low), float(cfg.tau_high), limits.z_min, limits.z_max)
     state.binary = binary
     if n_candidates == 0:
         nan = math.nan
