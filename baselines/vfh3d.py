@@ -291,9 +291,6 @@ def _select_kernel(masked, win, units, refs, weights, extra, cell, window_open):
     return n_open, best_e, best_z, best_cost
 
 
-_shape = functools.lru_cache(maxsize=8)(histogram_shape)
-
-
 @functools.lru_cache(maxsize=8)
 def _zeros_u8(n_e: int, n_z: int) -> np.ndarray:
     """A shared read-only all-free binary histogram: the hysteresis input of the first cycle."""
@@ -459,8 +456,8 @@ def select_direction(masked, target_dir, current_dir, previous_dir, cfg: VFHConf
 
 
 @numba.njit(cache=True)
-def _cycle_kernel(voxels, voxel_probs, neighbours, r_e, r_neighbour, pos, previous, psi, r_t, e_max, directions, gains,
-                  k4, win, units, cell, R_w, a, b, paper_floor, tau_low, tau_high, z_min, z_max):
+def _cycle_kernel(voxels, voxel_probs, neighbours, pos, previous, psi, r_t, e_max, directions, gains, units, r_e,
+                  r_neighbour, k4, win, cell, R_w, a, b, paper_floor, tau_low, tau_high, z_min, z_max):
     """Stages (f1)-(f7) in one call: (emergency, n_open, row, column, primary, binary, masked).
 
     Neighbours join the voxels as pseudo-voxels with o = 1 and radius ``r_neighbour``. The stage
@@ -488,6 +485,26 @@ def _cycle_kernel(voxels, voxel_probs, neighbours, r_e, r_neighbour, pos, previo
     return emergency, n_open, row, col, primary, binary, masked
 
 
+_last_setup = [None]  # (cfg, limits, voxel_size, setup) of the last cycle
+
+
+def _cycle_setup(cfg: VFHConfig, limits: UAVLimits, voxel_size: float) -> tuple:
+    """(elevation, azimuth, units, r_e, r_neighbour, k4, ..., z_max): the configuration's inputs of ``_cycle_kernel``.
+
+    Kept for the last (cfg, limits, voxel_size): planners pass the same objects every cycle, and
+    an identity test costs far less than ``resolve``'s lru_cache, which hashes both frozen configs.
+    """
+    last = _last_setup[0]
+    if last is not None and last[0] is cfg and last[1] is limits and last[2] == voxel_size:
+        return last[3]
+    r_e, a, b, extra = cfg.resolve(limits, voxel_size)
+    setup = (*cell_geometry(cfg.alpha_h), float(r_e), float(r_e + extra), float(cfg.k4), cfg.win, float(cfg.alpha_h),
+             float(cfg.R_w), float(a), float(b), cfg.enlarge_mode == "paper_floor", float(cfg.tau_low),
+             float(cfg.tau_high), limits.z_min, limits.z_max)
+    _last_setup[0] = (cfg, limits, voxel_size, setup)
+    return setup
+
+
 def vfh3d_step(state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos, psi: float, v: float, vz: float,
                target_dir, voxel_centres, voxel_probs, voxel_size: float, neighbour_positions=None) -> VFHResult:
     """One 3D VFH+ cycle for one UAV; updates ``state`` (binary histogram, and the selection if not blocked).
@@ -496,7 +513,8 @@ def vfh3d_step(state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos, psi: flo
     ``OccupancyMap.occupied_in_sphere(pos, cfg.R_w)``); neighbour UAVs (K, 3) become pseudo-voxels
     with o = 1 and enlargement r_e + neighbour_r_extra (spec (g6)).
     """
-    r_e, a, b, extra = cfg.resolve(limits, voxel_size)
+    setup = _cycle_setup(cfg, limits, voxel_size)
+    elevation, azimuth, units = setup[:3]
     pos = np.ascontiguousarray(pos, dtype=np.float64)
     centres = np.ascontiguousarray(voxel_centres, dtype=np.float64).reshape(-1, 3)
     probs = np.ascontiguousarray(voxel_probs, dtype=np.float64)
@@ -507,7 +525,7 @@ def vfh3d_step(state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos, psi: flo
         neighbours = _NO_NEIGHBOURS
     else:
         neighbours = np.asarray(neighbour_positions, dtype=np.float64).reshape(-1, 3)
-    n_e, n_z = _shape(cfg.alpha_h)
+    n_e, n_z = units.shape[:2]
     if state.binary is None:
         previous = _zeros_u8(n_e, n_z)
     else:
@@ -519,11 +537,8 @@ def vfh3d_step(state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos, psi: flo
     gamma = math.atan2(vz, max(v, 1e-3))
     current_dir = (math.cos(psi) * math.cos(gamma), math.sin(psi) * math.cos(gamma), math.sin(gamma))
     directions, gains = _references(target_dir, current_dir, state.previous_dir, cfg)
-    elevation, azimuth, units = cell_geometry(cfg.alpha_h)
     emergency, n_candidates, row, col, primary, binary, masked = _cycle_kernel(
-        centres, probs, neighbours, float(r_e), float(r_e + extra), pos, previous, float(psi), r_t, float(e_max),
-        directions, gains, float(cfg.k4), cfg.win, units, float(cfg.alpha_h), float(cfg.R_w), float(a), float(b),
-        cfg.enlarge_mode == "paper_floor", float(cfg.tau_low), float(cfg.tau_high), limits.z_min, limits.z_max)
+        centres, probs, neighbours, pos, previous, float(psi), r_t, float(e_max), directions, gains, *setup[2:])
     state.binary = binary
     if n_candidates == 0:
         nan = math.nan
