@@ -105,7 +105,10 @@ class VFHState:
 
 @dataclass
 class VFHResult:
-    """One cycle's outcome. When ``blocked`` (no open window) azimuth, elevation and direction are NaN."""
+    """One cycle's outcome. When ``blocked`` (no open window) azimuth, elevation and direction are NaN.
+
+    ``window_open`` is ``open_cells(masked, win)``, the candidates the selection already computed.
+    """
 
     blocked: bool
     azimuth: float
@@ -116,6 +119,7 @@ class VFHResult:
     binary: np.ndarray
     masked: np.ndarray
     n_candidates: int
+    window_open: np.ndarray | None = None
 
 
 @numba.njit(cache=True)
@@ -383,7 +387,7 @@ def _references(target_dir, current_dir, previous_dir, cfg: VFHConfig):
 
 @numba.njit(cache=True)
 def _choose_kernel(masked, primary, directions, gains, k4, win, units, cell):
-    """(n_open, row, column, cost) of the cheapest open cell under the cost of spec (f6)-(f7).
+    """(n_open, row, column, cost, window_open): the cheapest open cell under the cost of spec (f6)-(f7).
 
     Each direction is binned to its cell and weighed by its gain; references that share a cell merge
     into one angle per distinct cell (steady flight has one), largest weight first since it prunes
@@ -425,7 +429,8 @@ def _choose_kernel(masked, primary, directions, gains, k4, win, units, cell):
     else:
         extra = np.zeros((0, 0))
     window_open = np.empty((n_e, n_z), dtype=np.bool_)
-    return _select_kernel(masked, win, units, refs, merged[:n].copy(), extra, cell, window_open)
+    n_open, row, col, cost = _select_kernel(masked, win, units, refs, merged[:n].copy(), extra, cell, window_open)
+    return n_open, row, col, cost, window_open
 
 
 def select_direction(masked, target_dir, current_dir, previous_dir, cfg: VFHConfig, primary=None):
@@ -450,15 +455,15 @@ def select_direction(masked, target_dir, current_dir, previous_dir, cfg: VFHConf
         primary = np.ascontiguousarray(primary, dtype=np.float64)
         if primary.shape != expected:
             raise ValueError(f"primary: expected shape {expected} for alpha_h, got {primary.shape}")
-    n_open, row, col, cost = _choose_kernel(masked, primary, directions, gains, float(cfg.k4), cfg.win,
-                                            cell_geometry(cfg.alpha_h)[2], float(cfg.alpha_h))
+    n_open, row, col, cost, _ = _choose_kernel(masked, primary, directions, gains, float(cfg.k4), cfg.win,
+                                               cell_geometry(cfg.alpha_h)[2], float(cfg.alpha_h))
     return (None, math.inf) if n_open == 0 else ((row, col), cost)
 
 
 @numba.njit(cache=True)
 def _cycle_kernel(voxels, voxel_probs, neighbours, pos, previous, psi, r_t, e_max, directions, gains, units, r_e,
                   r_neighbour, k4, win, cell, R_w, a, b, paper_floor, tau_low, tau_high, z_min, z_max):
-    """Stages (f1)-(f7) in one call: (emergency, n_open, row, column, primary, binary, masked).
+    """Stages (f1)-(f7) in one call: (emergency, n_open, row, column, primary, binary, masked, window_open).
 
     Neighbours join the voxels as pseudo-voxels with o = 1 and radius ``r_neighbour``. The stage
     kernels are called directly: ``vfh3d_step`` builds their inputs, so the wrappers' checks
@@ -481,8 +486,8 @@ def _cycle_kernel(voxels, voxel_probs, neighbours, pos, previous, psi, r_t, e_ma
     _binary_kernel(primary.ravel(), previous.ravel(), tau_low, tau_high, binary.ravel())
     delta_r, delta_l = _turning_kernel(centres, probs, radii, pos, psi, r_t, R_w)
     _mask_kernel(binary, psi, delta_r, delta_l, e_max, pos[2], R_w, z_min, z_max, cell, masked)
-    n_open, row, col, _ = _choose_kernel(masked, primary, directions, gains, k4, win, units, cell)
-    return emergency, n_open, row, col, primary, binary, masked
+    n_open, row, col, _, window_open = _choose_kernel(masked, primary, directions, gains, k4, win, units, cell)
+    return emergency, n_open, row, col, primary, binary, masked, window_open
 
 
 _last_setup = [None]  # (cfg, limits, voxel_size, setup) of the last cycle
@@ -537,14 +542,14 @@ def vfh3d_step(state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos, psi: flo
     gamma = math.atan2(vz, max(v, 1e-3))
     current_dir = (math.cos(psi) * math.cos(gamma), math.sin(psi) * math.cos(gamma), math.sin(gamma))
     directions, gains = _references(target_dir, current_dir, state.previous_dir, cfg)
-    emergency, n_candidates, row, col, primary, binary, masked = _cycle_kernel(
+    emergency, n_candidates, row, col, primary, binary, masked, window_open = _cycle_kernel(
         centres, probs, neighbours, pos, previous, float(psi), r_t, float(e_max), directions, gains, *setup[2:])
     state.binary = binary
     if n_candidates == 0:
         nan = math.nan
-        return VFHResult(True, nan, nan, np.full(3, nan), emergency, primary, binary, masked, 0)
+        return VFHResult(True, nan, nan, np.full(3, nan), emergency, primary, binary, masked, 0, window_open)
     direction = units[row, col].copy()
     state.previous_dir = direction
     az = float(azimuth[col])
     return VFHResult(False, az - 2.0 * math.pi if az > math.pi else az, float(elevation[row]), direction, emergency,
-                     primary, binary, masked, n_candidates)
+                     primary, binary, masked, n_candidates, window_open)
