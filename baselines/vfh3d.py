@@ -295,14 +295,6 @@ def _select_kernel(masked, win, units, refs, weights, extra, cell, window_open):
     return n_open, best_e, best_z, best_cost
 
 
-@functools.lru_cache(maxsize=8)
-def _zeros_u8(n_e: int, n_z: int) -> np.ndarray:
-    """A shared read-only all-free binary histogram: the hysteresis input of the first cycle."""
-    zeros = np.zeros((n_e, n_z), dtype=np.uint8)
-    zeros.flags.writeable = False
-    return zeros
-
-
 _NO_NEIGHBOURS = np.zeros((0, 3))  # the neighbour positions of ``_cycle_kernel`` when there are none
 _NONE = np.zeros((0, 0))  # no extra cost (``open_cells``), no primary (``select_direction`` when k4 = 0)
 
@@ -420,16 +412,22 @@ def _choose_kernel(masked, primary, directions, gains, k4, win, units, cell):
             cells[j - 1, 1], cells[j, 1] = cells[j, 1], cells[j - 1, 1]
             j -= 1
     refs = np.empty((n, 3))
+    weights = np.empty(n)
     for j in range(n):
-        refs[j] = units[cells[j, 0], cells[j, 1]]
+        for c in range(3):
+            refs[j, c] = units[cells[j, 0], cells[j, 1], c]
+        weights[j] = merged[j]
     if k4 != 0.0:
-        passage = np.empty((n_e, n_z))
-        _passage_kernel(primary, current_row, current_col, passage)
-        extra = k4 * passage / (1.0 + passage.max())
+        extra = np.empty((n_e, n_z))
+        _passage_kernel(primary, current_row, current_col, extra)
+        scale = 1.0 + extra.max()
+        for e in range(n_e):  # k4 P / (1 + max P) in place; a loop compiles seconds faster than the array expression
+            for z in range(n_z):
+                extra[e, z] = k4 * extra[e, z] / scale
     else:
         extra = np.zeros((0, 0))
     window_open = np.empty((n_e, n_z), dtype=np.bool_)
-    n_open, row, col, cost = _select_kernel(masked, win, units, refs, merged[:n].copy(), extra, cell, window_open)
+    n_open, row, col, cost = _select_kernel(masked, win, units, refs, weights, extra, cell, window_open)
     return n_open, row, col, cost, window_open
 
 
@@ -472,12 +470,16 @@ def _cycle_kernel(voxels, voxel_probs, neighbours, pos, previous, psi, r_t, e_ma
     """
     m, k = voxels.shape[0], neighbours.shape[0]
     centres = np.empty((m + k, 3))
-    centres[:m] = voxels
-    centres[m:] = neighbours
     probs = np.ones(m + k)
-    probs[:m] = voxel_probs
     radii = np.full(m + k, r_e)
-    radii[m:] = r_neighbour
+    for i in range(m):  # element loops: slice assignments would add seconds of compile time
+        for c in range(3):
+            centres[i, c] = voxels[i, c]
+        probs[i] = voxel_probs[i]
+    for i in range(k):
+        for c in range(3):
+            centres[m + i, c] = neighbours[i, c]
+        radii[m + i] = r_neighbour
     n_e, n_z = units.shape[0], units.shape[1]
     primary = np.zeros((n_e, n_z))
     binary = np.empty((n_e, n_z), dtype=np.uint8)
@@ -531,8 +533,8 @@ def vfh3d_step(state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos, psi: flo
     else:
         neighbours = np.asarray(neighbour_positions, dtype=np.float64).reshape(-1, 3)
     n_e, n_z = units.shape[:2]
-    if state.binary is None:
-        previous = _zeros_u8(n_e, n_z)
+    if state.binary is None:  # all free; writable like a kept binary, so one compiled kernel serves both
+        previous = np.zeros((n_e, n_z), dtype=np.uint8)
     else:
         previous = np.ascontiguousarray(state.binary, dtype=np.uint8)
         if previous.shape != (n_e, n_z):
