@@ -356,8 +356,9 @@ def passage_cost(primary, current_cell) -> np.ndarray:
 def _direction(direction, name: str) -> tuple[float, float, float]:
     """``direction`` as three floats; rejects anything but a finite, non-zero 3-vector."""
     try:
-        # A 1-D array unpacks about three times faster through tolist() than element by element.
-        dx, dy, dz = direction.tolist() if type(direction) is np.ndarray and direction.ndim == 1 else direction
+        # A 1-D float array unpacks about three times faster through tolist() than element by element.
+        fast = type(direction) is np.ndarray and direction.ndim == 1 and direction.dtype.kind == "f"
+        dx, dy, dz = direction.tolist() if fast else direction
         dx, dy, dz = float(dx), float(dy), float(dz)
     except (TypeError, ValueError):
         raise ValueError(f"{name}={direction!r}: expected a 3-vector") from None
