@@ -105,7 +105,10 @@ class VFHState:
 
 @dataclass
 class VFHResult:
-    """One cycle's outcome. When ``blocked`` (no open window) azimuth, elevation and direction are NaN."""
+    """One cycle's outcome. When ``blocked`` (no open window) azimuth, elevation and direction are NaN.
+
+    ``window_open`` is ``open_cells(masked, win)``, the candidates the selection already computed.
+    """
 
     blocked: bool
     azimuth: float
@@ -116,11 +119,17 @@ class VFHResult:
     binary: np.ndarray
     masked: np.ndarray
     n_candidates: int
+    window_open: np.ndarray | None = None
 
 
 @numba.njit(cache=True)
 def _turning_kernel(centres, probs, r_e, pos, psi, r_t, R_w):
-    """(delta_R, delta_L): nearest blocked offsets from psi on each side among the active voxels (spec (f3))."""
+    """(delta_R, delta_L): nearest blocked offsets from psi on each side among the active voxels (spec (f3)).
+
+    Hovering (r_t < 1 mm) restricts nothing: a multirotor can yaw in place.
+    """
+    if r_t < 1e-3:
+        return -math.pi, math.pi
     s = r_t * math.sin(psi)
     c = r_t * math.cos(psi)
     delta_r, delta_l = -math.pi, math.pi
@@ -152,17 +161,15 @@ def turning_limits(centres, pos, psi: float, v: float, limits: UAVLimits, r_e) -
     if centres.ndim != 2 or centres.shape[1] != 3:
         raise ValueError(f"centres: expected shape (M, 3), got {centres.shape}")
     radii = np.ascontiguousarray(np.broadcast_to(np.asarray(r_e, dtype=np.float64), centres.shape[:1]))
-    return _turning(centres, np.ones(centres.shape[0]), radii, np.ascontiguousarray(pos, dtype=np.float64), psi, v,
-                    limits, math.inf)
+    return _turning_kernel(centres, np.ones(centres.shape[0]), radii, np.ascontiguousarray(pos, dtype=np.float64),
+                           float(psi), _turn_radius(v, limits), math.inf)
 
 
-def _turning(centres, probs, radii, pos, psi, v, limits: UAVLimits, R_w):
+def _turn_radius(v, limits: UAVLimits) -> float:
+    """r_t = v / w_max, the radius of the tightest turn at forward speed v."""
     if not v >= 0.0:
         raise ValueError(f"v={v!r}: expected a non-negative forward speed")
-    r_t = v / limits.w_max
-    if r_t < 1e-3:
-        return -math.pi, math.pi
-    return _turning_kernel(centres, probs, radii, pos, float(psi), r_t, float(R_w))
+    return float(v / limits.w_max)
 
 
 @numba.njit(cache=True)
@@ -231,27 +238,34 @@ def _select_kernel(masked, win, units, refs, weights, extra, cell, window_open):
 
     The rectangle test is separable: a circular pass along each row, then a pass down the rows where
     rows beyond the poles count as free; both slide a count of closed cells instead of rescanning.
+    The row pass copies the row into a buffer padded with its wrapped ends, so the slide needs no
+    index wrapping.
     The cost of an open cell is extra[cell] + sum_k weights[k] * angle(cell, refs[k]) / cell, with
-    weights > 0 in decreasing order. Cells whose first term alone exceeds the best cost so far are
-    skipped with one dot product (extra >= 0, so every term is >= 0), which saves most arc cosines
-    in open space.
+    weights > 0 in decreasing order; an empty ``extra`` adds nothing (no 20 kB of zeros to fill and
+    read). Cells whose first term alone exceeds the best cost so far are skipped with one dot product
+    (extra >= 0, so every term is >= 0), which saves most arc cosines in open space.
     """
     n_e, n_z = masked.shape
-    row_closed = np.empty((n_e, n_z), dtype=np.int64)  # closed cells among columns col - win .. col + win
+    span = 2 * win + 1
+    ring = np.empty(n_z + span - 1, dtype=np.int64)  # ring[win + col] = closed flag of column col
+    row_closed = np.empty((n_e, n_z), dtype=np.uint8)  # a closed cell among columns col - win .. col + win
     for e in range(n_e):
-        closed = 0
-        for s in range(-win, win + 1):
-            closed += masked[e, s % n_z] != 0
-        enter, leave = (win + 1) % n_z, (n_z - win % n_z) % n_z
         for col in range(n_z):
-            row_closed[e, col] = closed
-            closed += (masked[e, enter] != 0) - (masked[e, leave] != 0)
-            enter = enter + 1 if enter + 1 < n_z else 0
-            leave = leave + 1 if leave + 1 < n_z else 0
-    window_closed = np.zeros(n_z, dtype=np.int64)  # rows with row_closed > 0 among rows e - win .. e + win
+            ring[win + col] = masked[e, col] != 0
+        for s in range(win):
+            ring[s] = ring[win + (s - win) % n_z]
+            ring[win + n_z + s] = ring[win + s % n_z]
+        closed = 0
+        for s in range(span - 1):
+            closed += ring[s]
+        for col in range(n_z):
+            closed += ring[col + span - 1]
+            row_closed[e, col] = closed != 0
+            closed -= ring[col]
+    window_closed = np.zeros(n_z, dtype=np.int64)  # rows with row_closed among rows e - win .. e + win
     for r in range(min(win, n_e - 1) + 1):
         for col in range(n_z):
-            window_closed[col] += row_closed[r, col] != 0
+            window_closed[col] += row_closed[r, col]
     n_open, best_e, best_z, best_cost = 0, -1, -1, np.inf
     prune_dot = -2.0  # cells with dot(unit, refs[0]) below this cannot beat best_cost
     for e in range(n_e):
@@ -261,7 +275,7 @@ def _select_kernel(masked, win, units, refs, weights, extra, cell, window_open):
             if not free:
                 continue
             n_open += 1
-            cost = extra[e, col]
+            cost = extra[e, col] if extra.size else 0.0
             for k in range(refs.shape[0]):
                 dot = units[e, col, 0] * refs[k, 0] + units[e, col, 1] * refs[k, 1] + units[e, col, 2] * refs[k, 2]
                 if k == 0 and dot < prune_dot:
@@ -274,30 +288,15 @@ def _select_kernel(masked, win, units, refs, weights, extra, cell, window_open):
                     prune_dot = math.cos(min(best_cost * cell / weights[0], math.pi))
         if e + win + 1 < n_e:
             for col in range(n_z):
-                window_closed[col] += row_closed[e + win + 1, col] != 0
+                window_closed[col] += row_closed[e + win + 1, col]
         if e - win >= 0:
             for col in range(n_z):
-                window_closed[col] -= row_closed[e - win, col] != 0
+                window_closed[col] -= row_closed[e - win, col]
     return n_open, best_e, best_z, best_cost
 
 
-_shape = functools.lru_cache(maxsize=8)(histogram_shape)
-
-
-@functools.lru_cache(maxsize=8)
-def _zeros_u8(n_e: int, n_z: int) -> np.ndarray:
-    """A shared read-only all-free binary histogram: the hysteresis input of the first cycle."""
-    zeros = np.zeros((n_e, n_z), dtype=np.uint8)
-    zeros.flags.writeable = False
-    return zeros
-
-
-@functools.lru_cache(maxsize=8)
-def _zeros(n_e: int, n_z: int) -> np.ndarray:
-    """A shared read-only zero histogram: the no-extra-cost input of ``_select_kernel``."""
-    zeros = np.zeros((n_e, n_z))
-    zeros.flags.writeable = False
-    return zeros
+_NO_NEIGHBOURS = np.zeros((0, 3))  # the neighbour positions of ``_cycle_kernel`` when there are none
+_NONE = np.zeros((0, 0))  # no extra cost (``open_cells``), no primary (``select_direction`` when k4 = 0)
 
 
 def open_cells(masked, win: int) -> np.ndarray:
@@ -309,7 +308,7 @@ def open_cells(masked, win: int) -> np.ndarray:
         raise ValueError(f"win={win!r}: expected a non-negative integer")
     units = cell_geometry(math.pi / masked.shape[0])[2]
     window_open = np.empty(masked.shape, dtype=np.bool_)
-    _select_kernel(masked, win, units, np.zeros((0, 3)), np.zeros(0), _zeros(*masked.shape), 1.0, window_open)
+    _select_kernel(masked, win, units, np.zeros((0, 3)), np.zeros(0), _NONE, 1.0, window_open)
     return window_open
 
 
@@ -354,51 +353,83 @@ def passage_cost(primary, current_cell) -> np.ndarray:
     return out
 
 
-# Binning a single direction is cheaper in plain Python than through the numba dispatcher;
-# ``py_func`` is the same source, so the rule stays the one of the histogram kernel.
-_cell_of = cell_index.py_func
-
-
-def _direction_cell(direction, name: str, cell: float, n_e: int, n_z: int) -> tuple[int, int]:
+def _direction(direction, name: str) -> tuple[float, float, float]:
+    """``direction`` as three floats; rejects anything but a finite, non-zero 3-vector."""
     try:
-        dx, dy, dz = direction
+        # A 1-D float array unpacks about three times faster through tolist() than element by element.
+        fast = type(direction) is np.ndarray and direction.ndim == 1 and direction.dtype.kind == "f"
+        dx, dy, dz = direction.tolist() if fast else direction
         dx, dy, dz = float(dx), float(dy), float(dz)
     except (TypeError, ValueError):
         raise ValueError(f"{name}={direction!r}: expected a 3-vector") from None
     if not (math.isfinite(dx) and math.isfinite(dy) and math.isfinite(dz)) or dx == dy == dz == 0.0:
         raise ValueError(f"{name}={direction!r}: expected a finite, non-zero 3-vector")
-    return _cell_of(dx, dy, dz, cell, n_e, n_z, 0.0)
+    return dx, dy, dz
 
 
-def _select(masked, target_dir, current_dir, previous_dir, cfg: VFHConfig, primary):
-    """(cell or None, cost, n_open): the cheapest open cell under the cost of spec (f6)-(f7)."""
+def _references(target_dir, current_dir, previous_dir, cfg: VFHConfig):
+    """(directions, gains) for ``_choose_kernel``: the checked target, current and previous directions, and k1..k3.
+
+    ``previous_dir`` None means the first cycle: the target stands in.
+    """
+    target = _direction(target_dir, "target_dir")
+    current = _direction(current_dir, "current_dir")
+    previous = target if previous_dir is None else _direction(previous_dir, "previous_dir")
+    return (target, current, previous), (float(cfg.k1), float(cfg.k2), float(cfg.k3))
+
+
+@numba.njit(cache=True)
+def _choose_kernel(masked, primary, directions, gains, k4, win, units, cell):
+    """(n_open, row, column, cost, window_open): the cheapest open cell under the cost of spec (f6)-(f7).
+
+    Each direction is binned to its cell and weighed by its gain; references that share a cell merge
+    into one angle per distinct cell (steady flight has one), largest weight first since it prunes
+    best (equal weights keep the target, current, previous order). The passage cost (k4 > 0) runs
+    from the current cell over ``primary``.
+    """
     n_e, n_z = masked.shape
-    cell = cfg.alpha_h
-    target = _direction_cell(target_dir, "target_dir", cell, n_e, n_z)
-    current = _direction_cell(current_dir, "current_dir", cell, n_e, n_z)
-    previous = target if previous_dir is None else _direction_cell(previous_dir, "previous_dir", cell, n_e, n_z)
-    # Merge references that share a cell: one angle per distinct cell (steady flight has one).
-    weight_of = {}
-    for weight, ref in ((cfg.k1, target), (cfg.k2, current), (cfg.k3, previous)):
-        if weight:
-            weight_of[ref] = weight_of.get(ref, 0.0) + weight
-    ordered = sorted(weight_of, key=weight_of.get, reverse=True)  # the largest weight prunes best
-    units = cell_geometry(cell)[2]
-    refs = units[[ref[0] for ref in ordered], [ref[1] for ref in ordered]]  # (k, 3), a fresh C-contiguous copy
-    if cfg.k4:
-        if primary is None:
-            raise ValueError("primary: the primary histogram is needed when VFHConfig.k4 > 0")
-        passage = passage_cost(primary, current)
-        extra = cfg.k4 * passage / (1.0 + passage.max())
-        extra.flags.writeable = False  # same numba type as _zeros: one compiled kernel, not two
+    cells = np.empty((3, 2), dtype=np.int64)
+    merged = np.zeros(3)
+    n = 0
+    for k in range(3):
+        dx, dy, dz = directions[k]
+        row, col = cell_index(dx, dy, dz, cell, n_e, n_z, 0.0)
+        if k == 1:
+            current_row, current_col = row, col
+        if gains[k] == 0.0:
+            continue
+        j = 0
+        while j < n and (cells[j, 0] != row or cells[j, 1] != col):
+            j += 1
+        if j == n:
+            cells[n, 0], cells[n, 1] = row, col
+            n += 1
+        merged[j] += gains[k]
+    for i in range(1, n):  # stable insertion sort, decreasing weight
+        j = i
+        while j > 0 and merged[j - 1] < merged[j]:
+            merged[j - 1], merged[j] = merged[j], merged[j - 1]
+            cells[j - 1, 0], cells[j, 0] = cells[j, 0], cells[j - 1, 0]
+            cells[j - 1, 1], cells[j, 1] = cells[j, 1], cells[j - 1, 1]
+            j -= 1
+    refs = np.empty((n, 3))
+    weights = np.empty(n)
+    for j in range(n):
+        for c in range(3):
+            refs[j, c] = units[cells[j, 0], cells[j, 1], c]
+        weights[j] = merged[j]
+    if k4 != 0.0:
+        extra = np.empty((n_e, n_z))
+        _passage_kernel(primary, current_row, current_col, extra)
+        scale = 1.0 + extra.max()
+        for e in range(n_e):  # k4 P / (1 + max P) in place; a loop compiles seconds faster than the array expression
+            for z in range(n_z):
+                extra[e, z] = k4 * extra[e, z] / scale
     else:
-        extra = _zeros(n_e, n_z)
+        extra = np.zeros((0, 0))
     window_open = np.empty((n_e, n_z), dtype=np.bool_)
-    weights = np.array([weight_of[ref] for ref in ordered], dtype=np.float64)
-    n_open, row, col, cost = _select_kernel(masked, cfg.win, units, refs, weights, extra, cell, window_open)
-    if n_open == 0:
-        return None, math.inf, 0
-    return (row, col), cost, n_open
+    n_open, row, col, cost = _select_kernel(masked, win, units, refs, weights, extra, cell, window_open)
+    return n_open, row, col, cost, window_open
 
 
 def select_direction(masked, target_dir, current_dir, previous_dir, cfg: VFHConfig, primary=None):
@@ -414,8 +445,72 @@ def select_direction(masked, target_dir, current_dir, previous_dir, cfg: VFHConf
     expected = histogram_shape(cfg.alpha_h)
     if masked.shape != expected:
         raise ValueError(f"masked: expected shape {expected} for alpha_h, got {masked.shape}")
-    cell, cost, _ = _select(masked, target_dir, current_dir, previous_dir, cfg, primary)
-    return cell, cost
+    directions, gains = _references(target_dir, current_dir, previous_dir, cfg)
+    if not cfg.k4:
+        primary = _NONE
+    elif primary is None:
+        raise ValueError("primary: the primary histogram is needed when VFHConfig.k4 > 0")
+    else:
+        primary = np.ascontiguousarray(primary, dtype=np.float64)
+        if primary.shape != expected:
+            raise ValueError(f"primary: expected shape {expected} for alpha_h, got {primary.shape}")
+    n_open, row, col, cost, _ = _choose_kernel(masked, primary, directions, gains, float(cfg.k4), cfg.win,
+                                               cell_geometry(cfg.alpha_h)[2], float(cfg.alpha_h))
+    return (None, math.inf) if n_open == 0 else ((row, col), cost)
+
+
+@numba.njit(cache=True)
+def _cycle_kernel(voxels, voxel_probs, neighbours, pos, previous, psi, r_t, e_max, directions, gains, units, r_e,
+                  r_neighbour, k4, win, cell, R_w, a, b, paper_floor, tau_low, tau_high, z_min, z_max):
+    """Stages (f1)-(f7) in one call: (emergency, n_open, row, column, primary, binary, masked, window_open).
+
+    Neighbours join the voxels as pseudo-voxels with o = 1 and radius ``r_neighbour``. The stage
+    kernels are called directly: ``vfh3d_step`` builds their inputs, so the wrappers' checks
+    (primary_histogram, update_binary, masked_histogram) hold by construction. One dispatch, and
+    no array built in Python, since each numpy call there costs microseconds on cold caches.
+    """
+    m, k = voxels.shape[0], neighbours.shape[0]
+    centres = np.empty((m + k, 3))
+    probs = np.ones(m + k)
+    radii = np.full(m + k, r_e)
+    for i in range(m):  # element loops: slice assignments would add seconds of compile time
+        for c in range(3):
+            centres[i, c] = voxels[i, c]
+        probs[i] = voxel_probs[i]
+    for i in range(k):
+        for c in range(3):
+            centres[m + i, c] = neighbours[i, c]
+        radii[m + i] = r_neighbour
+    n_e, n_z = units.shape[0], units.shape[1]
+    primary = np.zeros((n_e, n_z))
+    binary = np.empty((n_e, n_z), dtype=np.uint8)
+    masked = np.empty((n_e, n_z), dtype=np.uint8)
+    emergency = _primary_kernel(centres, probs, radii, pos, cell, n_e, n_z, R_w, a, b, paper_floor, 0.0, primary)
+    _binary_kernel(primary.ravel(), previous.ravel(), tau_low, tau_high, binary.ravel())
+    delta_r, delta_l = _turning_kernel(centres, probs, radii, pos, psi, r_t, R_w)
+    _mask_kernel(binary, psi, delta_r, delta_l, e_max, pos[2], R_w, z_min, z_max, cell, masked)
+    n_open, row, col, _, window_open = _choose_kernel(masked, primary, directions, gains, k4, win, units, cell)
+    return emergency, n_open, row, col, primary, binary, masked, window_open
+
+
+_last_setup = [None]  # (cfg, limits, voxel_size, setup) of the last cycle
+
+
+def _cycle_setup(cfg: VFHConfig, limits: UAVLimits, voxel_size: float) -> tuple:
+    """(elevation, azimuth, units, r_e, r_neighbour, k4, ..., z_max): the configuration's inputs of ``_cycle_kernel``.
+
+    Kept for the last (cfg, limits, voxel_size): planners pass the same objects every cycle, and
+    an identity test costs far less than ``resolve``'s lru_cache, which hashes both frozen configs.
+    """
+    last = _last_setup[0]
+    if last is not None and last[0] is cfg and last[1] is limits and last[2] == voxel_size:
+        return last[3]
+    r_e, a, b, extra = cfg.resolve(limits, voxel_size)
+    setup = (*cell_geometry(cfg.alpha_h), float(r_e), float(r_e + extra), float(cfg.k4), cfg.win, float(cfg.alpha_h),
+             float(cfg.R_w), float(a), float(b), cfg.enlarge_mode == "paper_floor", float(cfg.tau_low),
+             float(cfg.tau_high), limits.z_min, limits.z_max)
+    _last_setup[0] = (cfg, limits, voxel_size, setup)
+    return setup
 
 
 def vfh3d_step(state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos, psi: float, v: float, vz: float,
@@ -426,47 +521,38 @@ def vfh3d_step(state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos, psi: flo
     ``OccupancyMap.occupied_in_sphere(pos, cfg.R_w)``); neighbour UAVs (K, 3) become pseudo-voxels
     with o = 1 and enlargement r_e + neighbour_r_extra (spec (g6)).
     """
-    r_e, a, b, extra = cfg.resolve(limits, voxel_size)
+    setup = _cycle_setup(cfg, limits, voxel_size)
+    elevation, azimuth, units = setup[:3]
     pos = np.ascontiguousarray(pos, dtype=np.float64)
     centres = np.ascontiguousarray(voxel_centres, dtype=np.float64).reshape(-1, 3)
     probs = np.ascontiguousarray(voxel_probs, dtype=np.float64)
     if pos.shape != (3,) or probs.shape != centres.shape[:1]:
         raise ValueError(f"pos {pos.shape}, voxel_centres {centres.shape}, voxel_probs {probs.shape}: "
                          "expected (3,), (M, 3) and (M,)")
-    radii = np.full(centres.shape[0], r_e)
-    if neighbour_positions is not None and len(neighbour_positions):
-        others = np.asarray(neighbour_positions, dtype=np.float64).reshape(-1, 3)
-        centres = np.concatenate([centres, others])
-        probs = np.concatenate([probs, np.ones(others.shape[0])])
-        radii = np.concatenate([radii, np.full(others.shape[0], r_e + extra)])
-    # The stage kernels are called directly: the inputs are built here, so the wrappers' checks
-    # (primary_histogram, update_binary, masked_histogram) hold by construction.
-    n_e, n_z = _shape(cfg.alpha_h)
-    primary = np.zeros((n_e, n_z))
-    emergency = bool(_primary_kernel(centres, probs, radii, pos, float(cfg.alpha_h), n_e, n_z, float(cfg.R_w),
-                                     float(a), float(b), cfg.enlarge_mode == "paper_floor", 0.0, primary))
-    if state.binary is None:
-        previous = _zeros_u8(n_e, n_z)
+    if neighbour_positions is None or not len(neighbour_positions):
+        neighbours = _NO_NEIGHBOURS
+    else:
+        neighbours = np.asarray(neighbour_positions, dtype=np.float64).reshape(-1, 3)
+    n_e, n_z = units.shape[:2]
+    if state.binary is None:  # all free; writable like a kept binary, so one compiled kernel serves both
+        previous = np.zeros((n_e, n_z), dtype=np.uint8)
     else:
         previous = np.ascontiguousarray(state.binary, dtype=np.uint8)
-        if previous.shape != primary.shape:
-            raise ValueError(f"previous_binary: expected shape {primary.shape}, got {previous.shape}")
-    binary = np.empty((n_e, n_z), dtype=np.uint8)
-    _binary_kernel(primary.ravel(), previous.ravel(), float(cfg.tau_low), float(cfg.tau_high), binary.ravel())
-    state.binary = binary
-    delta_r, delta_l = _turning(centres, probs, radii, pos, psi, v, limits, cfg.R_w)
-    masked = np.empty((n_e, n_z), dtype=np.uint8)
-    _mask_kernel(binary, float(psi), float(delta_r), float(delta_l), float(limits.climb_angle_limit(v)),
-                 float(pos[2]), float(cfg.R_w), limits.z_min, limits.z_max, float(cfg.alpha_h), masked)
+        if previous.shape != (n_e, n_z):
+            raise ValueError(f"previous_binary: expected shape {(n_e, n_z)}, got {previous.shape}")
+    r_t = _turn_radius(v, limits)
+    e_max = limits.climb_angle_limit(v)
     gamma = math.atan2(vz, max(v, 1e-3))
     current_dir = (math.cos(psi) * math.cos(gamma), math.sin(psi) * math.cos(gamma), math.sin(gamma))
-    cell, _, n_candidates = _select(masked, target_dir, current_dir, state.previous_dir, cfg, primary)
-    if cell is None:
+    directions, gains = _references(target_dir, current_dir, state.previous_dir, cfg)
+    emergency, n_candidates, row, col, primary, binary, masked, window_open = _cycle_kernel(
+        centres, probs, neighbours, pos, previous, float(psi), r_t, float(e_max), directions, gains, *setup[2:])
+    state.binary = binary
+    if n_candidates == 0:
         nan = math.nan
-        return VFHResult(True, nan, nan, np.full(3, nan), emergency, primary, binary, masked, n_candidates)
-    elevation, azimuth, units = cell_geometry(cfg.alpha_h)
-    direction = units[cell].copy()
+        return VFHResult(True, nan, nan, np.full(3, nan), emergency, primary, binary, masked, 0, window_open)
+    direction = units[row, col].copy()
     state.previous_dir = direction
-    az = float(azimuth[cell[1]])
-    return VFHResult(False, az - 2.0 * math.pi if az > math.pi else az, float(elevation[cell[0]]), direction, emergency,
-                     primary, binary, masked, n_candidates)
+    az = float(azimuth[col])
+    return VFHResult(False, az - 2.0 * math.pi if az > math.pi else az, float(elevation[row]), direction, emergency,
+                     primary, binary, masked, n_candidates, window_open)

@@ -353,6 +353,14 @@ def test_obstacle_on_one_side_turns_to_the_other(side):
     assert side * r.azimuth < 0.0 and abs(r.elevation) < 3 * CELL
 
 
+def test_cycle_returns_its_candidate_windows():
+    voxels = saturated([[4.1, y, z] for y in np.arange(-4.9, 5.0, 0.2) for z in np.arange(0.1, 3.4, 0.2)])
+    for v in (0.3, 1.0):
+        r = step(v=v, voxels=voxels)
+        np.testing.assert_array_equal(r.window_open, open_cells(r.masked, VFHConfig().win))
+        assert r.window_open.sum() == r.n_candidates
+
+
 def test_enclosed_uav_is_blocked():
     k = np.arange(400) + 0.5
     polar, azimuth = np.arccos(1 - 2 * k / 400), math.pi * (1 + 5**0.5) * k
