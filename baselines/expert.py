@@ -24,7 +24,7 @@ from uavform_env.world import grid_frame
 from .astar import AStarConfig, GlobalPath, Raster, inflate, plan_path, replan_trigger
 from .dwa import DWAConfig, dwa_plan
 from .policy import OnboardPolicy
-from .vfh3d import VFHConfig, VFHState, open_cells, vfh3d_step
+from .vfh3d import VFHConfig, VFHState, vfh3d_step
 
 LEVEL, CLIMB, BLOCKED = "level", "climb", "blocked"
 WEIGHT_NAMES = ("alpha0", "beta", "gamma", "eps0", "k1", "k2", "k3")
@@ -692,7 +692,7 @@ def _level_way(r, cfg: ExpertConfig, target_dir: np.ndarray) -> bool:
     """Whether an open cell of the two level rows lies within ``level_window`` of the target azimuth."""
     if cfg.level_window <= 0.0:
         return False
-    window_open = open_cells(r.masked, cfg.vfh.win)
+    window_open = r.window_open
     n_e, n_z = window_open.shape
     mid = n_e // 2
     level = window_open[mid - 1] | window_open[mid]
