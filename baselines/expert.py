@@ -321,7 +321,7 @@ class FusionExpert(OnboardPolicy):
         emergency = False
         if cfg.use_vfh:
             if level == 0 and reach >= cfg.vfh.R_w:             # the same voxels, in the same order, as a query
-                near = np.sum((obstacles - pos) ** 2, axis=1) <= cfg.vfh.R_w * cfg.vfh.R_w
+                near = _within(obstacles, pos, cfg.vfh.R_w)
                 centres, probs = obstacles[near], obstacle_probs[near]
             else:
                 centres, probs = view.occupancy.occupied_in_sphere(pos, cfg.vfh.R_w)
@@ -692,13 +692,29 @@ def _level_way(r, cfg: ExpertConfig, target_dir: np.ndarray) -> bool:
     """Whether an open cell of the two level rows lies within ``level_window`` of the target azimuth."""
     if cfg.level_window <= 0.0:
         return False
-    window_open = r.window_open
-    n_e, n_z = window_open.shape
-    mid = n_e // 2
-    level = window_open[mid - 1] | window_open[mid]
-    azimuths = (np.arange(n_z) + 0.5) * cfg.vfh.alpha_h
-    off = np.abs((azimuths - math.atan2(target_dir[1], target_dir[0]) + math.pi) % (2 * math.pi) - math.pi)
-    return bool(np.any(level & (off <= cfg.level_window)))
+    return _level_way_kernel(r.window_open, cfg.vfh.alpha_h, math.atan2(target_dir[1], target_dir[0]), cfg.level_window)
+
+
+@numba.njit(cache=True)
+def _level_way_kernel(window_open, cell, target_azimuth, window):
+    """_level_way on the open-window mask: the level rows' open columns within ``window`` of the target."""
+    mid = window_open.shape[0] // 2
+    for col in range(window_open.shape[1]):
+        if window_open[mid - 1, col] or window_open[mid, col]:
+            if abs(((col + 0.5) * cell - target_azimuth + math.pi) % (2 * math.pi) - math.pi) <= window:
+                return True
+    return False
+
+
+@numba.njit(cache=True)
+def _within(points, centre, radius):
+    """Mask of the ``points`` (M, 3) within ``radius`` of ``centre``."""
+    r2 = radius * radius
+    out = np.empty(points.shape[0], dtype=np.bool_)
+    for k in range(points.shape[0]):
+        dx, dy, dz = points[k, 0] - centre[0], points[k, 1] - centre[1], points[k, 2] - centre[2]
+        out[k] = dx * dx + dy * dy + dz * dz <= r2
+    return out
 
 
 @numba.njit(cache=True)

@@ -12,7 +12,7 @@ from gymnasium import spaces
 
 from baselines.dwa import dwa_plan
 from baselines.expert import (WEIGHT_NAMES, ExpertConfig, FusionExpert, StandardDWA, _away_vertically,
-                              _columns_without_gap, _segment_clear)
+                              _columns_without_gap, _level_way_kernel, _segment_clear)
 from uavform_env import EnvConfig, parallel_env
 from uavform_env.config import UAVLimits
 from uavform_env.occupancy import OccupancyMap
@@ -386,6 +386,20 @@ def test_raster_columns_match_a_vectorised_reference(seed):
     expected = columns_reference(occ, centres, z_min, z_max, gap)
     assert 0 < len(expected) < len(np.unique(np.floor(centres[:, :2] / 0.2), axis=0))   # both outcomes occur
     assert np.array_equal(got[np.lexsort(got.T[::-1])], expected)
+
+
+def test_level_way_known_answers():
+    cell = math.radians(5.0)
+    window_open = np.zeros((36, 72), dtype=bool)
+    window_open[17, 10] = True                                    # a level row, azimuth 52.5 deg
+    assert _level_way_kernel(window_open, cell, math.radians(60.0), math.radians(10.0))
+    assert not _level_way_kernel(window_open, cell, math.radians(60.0), math.radians(5.0))
+    window_open[:] = False
+    window_open[18, 71] = True                                    # the other level row, 357.5 deg
+    assert _level_way_kernel(window_open, cell, 0.0, math.radians(5.0))   # across the 0/360 seam
+    window_open[:] = False
+    window_open[16, 12] = True                                    # open, but one row below the level rows
+    assert not _level_way_kernel(window_open, cell, math.radians(62.5), math.radians(10.0))
 
 
 def test_segment_clearance_is_the_distance_to_the_segment():
