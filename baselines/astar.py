@@ -492,9 +492,7 @@ class GlobalPath:
     def update_progress(self, pos_xy) -> int:
         """Move the progress index to the node nearest ``pos_xy`` among itself and the next `window` nodes."""
         pos = _as_point("pos_xy", pos_xy)
-        stop = min(len(self.points), self.progress + self.window + 1)
-        d2 = np.sum((self.points[self.progress:stop] - pos) ** 2, axis=1)
-        self.progress += int(np.argmin(d2))
+        self.progress = _nearest_ahead(self.points, self.progress, self.window, pos[0], pos[1])
         return self.progress
 
     def lookahead(self, pos_xy, L_a: float) -> np.ndarray:
@@ -520,6 +518,18 @@ class GlobalPath:
         b = _as_grid("blocked_inflated", blocked_inflated, raster.shape)
         cells = raster.to_cell(self.points)
         return not _polyline_free(b, cells, self.allow_corner_cut)
+
+
+@numba.njit(cache=True)
+def _nearest_ahead(points, progress, window, x, y):
+    """Index of the node nearest (x, y) among ``points[progress]`` and the next ``window`` nodes (first on ties)."""
+    best, best_d2 = progress, math.inf
+    for k in range(progress, min(points.shape[0], progress + window + 1)):
+        dx, dy = points[k, 0] - x, points[k, 1] - y
+        d2 = dx * dx + dy * dy
+        if d2 < best_d2:
+            best, best_d2 = k, d2
+    return best
 
 
 def plan_path(blocked_world, raster: Raster, start_xy, goal_xy, inflate_radius: float,
