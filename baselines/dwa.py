@@ -166,12 +166,13 @@ def _finite(name: str, value) -> float:
     return float(value)
 
 
-def _array(name: str, value, shape_text: str, ndim: int, last: tuple | None = None) -> np.ndarray:
-    """A contiguous float64 array with ``ndim`` dims whose last dim is in ``last``; finite values only."""
+def _array(name: str, value, shape_text: str, ndim: int, last: tuple | None = None,
+           finite: bool = True) -> np.ndarray:
+    """A contiguous float64 array with ``ndim`` dims whose last dim is in ``last``; finite values only if ``finite``."""
     arr = np.ascontiguousarray(value, dtype=np.float64)
     if arr.ndim != ndim or (last is not None and arr.shape[-1] not in last):
         raise ValueError(f"{name}: expected shape {shape_text}, got {arr.shape}")
-    if not np.isfinite(arr).all():
+    if finite and not np.isfinite(arr).all():
         raise ValueError(f"{name}: expected finite values")
     return arr
 
@@ -331,15 +332,9 @@ _BLOCK = 5  # rollout steps per bounding sphere of _static_clearance
 
 @numba.njit(cache=True)
 def _bounding_sphere(path, k0, k1):
-    """Centre of the bounding box of path[k0:k1] and the farthest distance of those points from it."""
-    lo_x = hi_x = path[k0, 0]
-    lo_y = hi_y = path[k0, 1]
-    lo_z = hi_z = path[k0, 2]
-    for k in range(k0 + 1, k1):
-        lo_x, hi_x = min(lo_x, path[k, 0]), max(hi_x, path[k, 0])
-        lo_y, hi_y = min(lo_y, path[k, 1]), max(hi_y, path[k, 1])
-        lo_z, hi_z = min(lo_z, path[k, 2]), max(hi_z, path[k, 2])
-    cx, cy, cz = 0.5 * (lo_x + hi_x), 0.5 * (lo_y + hi_y), 0.5 * (lo_z + hi_z)
+    """The middle point of path[k0:k1] and the farthest distance of those points from it (one pass)."""
+    m = (k0 + k1 - 1) // 2
+    cx, cy, cz = path[m, 0], path[m, 1], path[m, 2]
     r2 = 0.0
     for k in range(k0, k1):
         dx, dy, dz = path[k, 0] - cx, path[k, 1] - cy, path[k, 2] - cz
@@ -348,7 +343,19 @@ def _bounding_sphere(path, k0, k1):
 
 
 @numba.njit(cache=True)
-def _static_clearance(path, x0, y0, z0, obstacles, rads, lows, cap, stop_below, spheres):
+def _obstacle_clearance(path, k0, k1, ox, oy, oz, rad):
+    """min |p_k - o| - rad over path[k0:k1] with one square root: sqrt and - are monotone in floating point."""
+    d2_min = math.inf
+    for k in range(k0, k1):
+        dx, dy, dz = path[k, 0] - ox, path[k, 1] - oy, path[k, 2] - oz
+        d2 = dx * dx + dy * dy + dz * dz
+        if d2 < d2_min:
+            d2_min = d2
+    return math.sqrt(d2_min) - rad
+
+
+@numba.njit(cache=True)
+def _static_clearance(path, x0, y0, z0, obstacles, rads, lows, cap, stop_below, spheres, seed):
     """min_k min_o |p_k - o| - R_o - r_uav over the rollout, exact below ``cap`` (spec (b5)).
 
     ``obstacles``, ``rads`` (R_o + r_uav) and ``lows`` (non-decreasing lower bounds of |o - start| - rads)
@@ -366,16 +373,14 @@ def _static_clearance(path, x0, y0, z0, obstacles, rads, lows, cap, stop_below, 
     """
     n = path.shape[0]
     n_blocks = (n + _BLOCK - 1) // _BLOCK
-    r2_start = 0.0
-    for k in range(n):
-        dx, dy, dz = path[k, 0] - x0, path[k, 1] - y0, path[k, 2] - z0
-        r2_start = max(r2_start, dx * dx + dy * dy + dz * dz)
-    r_start = math.sqrt(r2_start) + _SKIP_MARGIN
+    r_start = 0.0
     lo_x = lo_y = lo_z = math.inf
     hi_x = hi_y = hi_z = -math.inf
     for b in range(n_blocks):
         bx, by, bz, r = _bounding_sphere(path, b * _BLOCK, min(n, (b + 1) * _BLOCK))
         spheres[b, 0], spheres[b, 1], spheres[b, 2], spheres[b, 3] = bx, by, bz, r + _SKIP_MARGIN
+        dx, dy, dz = bx - x0, by - y0, bz - z0
+        r_start = max(r_start, math.sqrt(dx * dx + dy * dy + dz * dz) + r)
         lo_x, hi_x = min(lo_x, bx - r), max(hi_x, bx + r)
         lo_y, hi_y = min(lo_y, by - r), max(hi_y, by + r)
         lo_z, hi_z = min(lo_z, bz - r), max(hi_z, bz + r)
@@ -386,7 +391,12 @@ def _static_clearance(path, x0, y0, z0, obstacles, rads, lows, cap, stop_below, 
         dx, dy, dz = spheres[b, 0] - cx, spheres[b, 1] - cy, spheres[b, 2] - cz
         r_centre = max(r_centre, math.sqrt(dx * dx + dy * dy + dz * dz) + spheres[b, 3])
     r_centre += _SKIP_MARGIN
-    best = cap
+    r_start += 2.0 * _SKIP_MARGIN
+    best, nearest = cap, -1
+    if seed >= 0:  # an attained value: the loop below then only looks for smaller ones
+        c = _obstacle_clearance(path, 0, n, obstacles[seed, 0], obstacles[seed, 1], obstacles[seed, 2], rads[seed])
+        if c < best:
+            best, nearest = max(c, stop_below), seed
     for o in range(obstacles.shape[0]):
         if lows[o] >= r_start + best:
             break
@@ -401,18 +411,12 @@ def _static_clearance(path, x0, y0, z0, obstacles, rads, lows, cap, stop_below, 
             dx, dy, dz = ox - spheres[b, 0], oy - spheres[b, 1], oz - spheres[b, 2]
             if dx * dx + dy * dy + dz * dz >= lim * lim:
                 continue
-            d2_min = math.inf
-            for k in range(b * _BLOCK, min(n, (b + 1) * _BLOCK)):
-                dx, dy, dz = path[k, 0] - ox, path[k, 1] - oy, path[k, 2] - oz
-                d2 = dx * dx + dy * dy + dz * dz
-                if d2 < d2_min:
-                    d2_min = d2
-            c = math.sqrt(d2_min) - rad  # sqrt and - are monotone: the block's smallest clearance
+            c = _obstacle_clearance(path, b * _BLOCK, min(n, (b + 1) * _BLOCK), ox, oy, oz, rad)
             if c < best:
-                best = c
+                best, nearest = c, o
                 if best < stop_below:
-                    return best
-    return best
+                    return best, nearest
+    return best, nearest
 
 
 @numba.njit(cache=True)
@@ -558,7 +562,7 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, o
     path = np.empty((n_steps, 4))
     clearance = np.empty(n_samples)
     admissible = np.zeros(n_samples, dtype=np.bool_)
-    endpoint = np.empty((n_samples, 4))
+    endpoint = np.empty((n_samples, 3))
     alignment = np.empty(n_samples)
     heading = np.empty(n_samples)
     dist = np.empty(n_samples)
@@ -569,12 +573,14 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, o
     # no rollout gets farther than the fastest one; beyond its reach plus the clearance cap nothing counts
     reach = dt * n_steps * math.sqrt(v_hi * v_hi + vz * vz) + max(D_cap, v_hi * v_hi / (2.0 * a_max)) + r_uav
     obstacles, rads, lows = _nearby(obstacles, radii, x0, y0, z0, reach, r_uav)
+    nearest = 0 if obstacles.shape[0] > 0 else -1
     for i in range(n_samples):
         v, w = vs[i], ws[i]
         _rollout_table(x0, y0, z0, v, vz, dt, yaw[i % n_w], path)
         d_brake = v * v / (2.0 * a_max)
-        c = _static_clearance(path, x0, y0, z0, obstacles, rads, lows, max(D_cap, d_brake),
-                              -math.inf if exact_clearance else d_brake, spheres)
+        c, o = _static_clearance(path, x0, y0, z0, obstacles, rads, lows, max(D_cap, d_brake),
+                                 -math.inf if exact_clearance else d_brake, spheres, nearest)
+        nearest = o if o >= 0 else nearest
         ok = c > 0.0 and c >= d_brake
         if (ok or exact_clearance) and movers_pos.shape[0] > 0:
             c_mover = _mover_clearance(path, track, R_uu)
@@ -584,7 +590,7 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, o
         dist[i] = min(c, dist_cap)
         admissible[i] = ok
         ex, ey, psi_end = path[n_steps - 1, 0], path[n_steps - 1, 1], path[n_steps - 1, 3]
-        endpoint[i, :] = path[n_steps - 1, :]
+        endpoint[i, :] = path[n_steps - 1, :3]
         alignment[i] = _alignment(la_x - x0, la_y - y0, ex - x0, ey - y0, psi_end)
         bearing = bearing_now if heading_from_current else math.atan2(goal_y - ey, goal_x - ex)
         h = _heading(bearing, psi_end)
@@ -608,6 +614,50 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, o
 
 
 # ----------------------------------------------------------------------------------- planner
+
+
+def _plan_arrays(state, goal, lookahead, obstacles, obstacle_radius, movers_pos, movers_vel, finite: bool):
+    """dwa_plan's array arguments as contiguous float64 of checked shapes; values checked too if ``finite``.
+
+    ``finite=False`` leaves the values to one ``_valid_values`` call, the cheap common case.
+    """
+    state = _array("state", state, "(7,) [x, y, z, psi, v, w, vz]", 1, (7,), finite)
+    goal_xy = _array("goal", goal, "(2,) or (3,)", 1, (2, 3), finite)
+    la_xy = goal_xy if lookahead is None else _array("lookahead", lookahead, "(2,) or (3,)", 1, (2, 3), finite)
+    obstacles = np.empty((0, 3)) if np.size(obstacles) == 0 else \
+        _array("obstacles", obstacles, "(M, 3)", 2, (3,), finite)
+    radii = np.full(obstacles.shape[0], _finite("obstacle_radius", np.asarray(obstacle_radius).item())) \
+        if np.ndim(obstacle_radius) == 0 else _array("obstacle_radius", obstacle_radius, "(M,)", 1, None, finite)
+    if radii.shape != (obstacles.shape[0],) or (finite and not (radii >= 0).all()):
+        raise ValueError(f"obstacle_radius: expected one radius >= 0 per obstacle ({obstacles.shape[0]}) or a "
+                         f"single number, got shape {radii.shape}")
+    if (movers_pos is None) != (movers_vel is None):
+        raise ValueError("movers_pos, movers_vel: pass both (K, 3) arrays or neither")
+    if movers_pos is None:
+        movers_pos = movers_vel = np.empty((0, 3))
+    else:
+        movers_pos = _array("movers_pos", movers_pos, "(K, 3)", 2, (3,), finite)
+        movers_vel = _array("movers_vel", movers_vel, "(K, 3)", 2, (3,), finite)
+        if movers_pos.shape != movers_vel.shape:
+            raise ValueError(f"movers_pos {movers_pos.shape} and movers_vel {movers_vel.shape}: expected equal shapes")
+    return state, goal_xy, la_xy, obstacles, radii, movers_pos, movers_vel
+
+
+@numba.njit(cache=True)
+def _valid_values(state, goal, lookahead, obstacles, radii, movers_pos, movers_vel):
+    """Whether every value is finite and every radius >= 0 (``_plan_arrays``' value checks in one call)."""
+    for arr in (state, goal, lookahead, radii):
+        for x in arr:
+            if not math.isfinite(x):
+                return False
+    for arr in (obstacles, movers_pos, movers_vel):
+        for x in arr.ravel():
+            if not math.isfinite(x):
+                return False
+    for r in radii:
+        if not r >= 0.0:
+            return False
+    return True
 
 
 def _rotation_weight(cfg: DWAConfig, clearance_now: float, prev_alignment: float) -> float:
@@ -638,24 +688,14 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
     prev_alignment: c of the previous cycle's choice (E10 per_step, E11 alignment; None -> 1).
     If no sample is admissible, brakes: v = v_lo (= max(0, v0 - a_max dt) for v_min = 0), w = w0.
     """
-    state = _array("state", state, "(7,) [x, y, z, psi, v, w, vz]", 1, (7,))
-    goal_xy = _array("goal", goal, "(2,) or (3,)", 1, (2, 3))
-    la_xy = goal_xy if lookahead is None else _array("lookahead", lookahead, "(2,) or (3,)", 1, (2, 3))
-    obstacles = np.empty((0, 3)) if np.size(obstacles) == 0 else _array("obstacles", obstacles, "(M, 3)", 2, (3,))
-    radii = np.full(obstacles.shape[0], _finite("obstacle_radius", np.asarray(obstacle_radius).item())) \
-        if np.ndim(obstacle_radius) == 0 else _array("obstacle_radius", obstacle_radius, "(M,)", 1)
-    if radii.shape != (obstacles.shape[0],) or not (radii >= 0).all():
-        raise ValueError(f"obstacle_radius: expected one radius >= 0 per obstacle ({obstacles.shape[0]}) or a "
-                         f"single number, got shape {radii.shape}")
-    if (movers_pos is None) != (movers_vel is None):
-        raise ValueError("movers_pos, movers_vel: pass both (K, 3) arrays or neither")
-    if movers_pos is None:
-        movers_pos = movers_vel = np.empty((0, 3))
-    else:
-        movers_pos = _array("movers_pos", movers_pos, "(K, 3)", 2, (3,))
-        movers_vel = _array("movers_vel", movers_vel, "(K, 3)", 2, (3,))
-        if movers_pos.shape != movers_vel.shape:
-            raise ValueError(f"movers_pos {movers_pos.shape} and movers_vel {movers_vel.shape}: expected equal shapes")
+    try:
+        arrays = _plan_arrays(state, goal, lookahead, obstacles, obstacle_radius, movers_pos, movers_vel, False)
+        checked = _valid_values(*arrays)
+    except ValueError:
+        checked = False
+    if not checked:  # the full checks raise for the first bad argument, in argument order
+        arrays = _plan_arrays(state, goal, lookahead, obstacles, obstacle_radius, movers_pos, movers_vel, True)
+    state, goal_xy, la_xy, obstacles, radii, movers_pos, movers_vel = arrays
     vz_cmd = _finite("vz_cmd", vz_cmd)
     if math.isnan(clearance_now):
         raise ValueError("clearance_now=nan: expected a number (inf in open space)")
@@ -698,11 +738,11 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
                             cfg.norm == "minmax", exact_clearance)
 
     pick, vs, ws, score, clearance, admissible, endpoint, alignment = run(v_lo, v_hi, w_lo, w_hi, False)
-    candidates = DWACandidates(vs, ws, admissible, clearance, score, endpoint[:, :3])
+    candidates = DWACandidates(vs, ws, admissible, clearance, score, endpoint)
     if pick >= 0:
-        return DWAResult(float(vs[pick]), float(ws[pick]), True, int(admissible.sum()), float(score[pick]),
-                         endpoint[pick, :3].copy(), float(clearance[pick]), float(alignment[pick]), candidates)
+        return DWAResult(float(vs[pick]), float(ws[pick]), True, int(np.count_nonzero(admissible)), float(score[pick]),
+                         endpoint[pick].copy(), float(clearance[pick]), float(alignment[pick]), candidates)
     brake_w = min(max(state[5], w_lo), w_hi)
     _, _, _, _, brake_clearance, _, brake_end, brake_alignment = run(v_lo, v_lo, brake_w, brake_w, True)
-    return DWAResult(v_lo, float(brake_w), False, 0, math.nan, brake_end[0, :3].copy(), float(brake_clearance[0]),
+    return DWAResult(v_lo, float(brake_w), False, 0, math.nan, brake_end[0].copy(), float(brake_clearance[0]),
                      float(brake_alignment[0]), candidates)
