@@ -266,7 +266,7 @@ def _window_grid(v_lo, v_hi, w_lo, w_hi, v_res, w_res):
 _SKIP_MARGIN = 1e-9  # m: the geometric skip tests below keep this much slack over float rounding
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _rollout_table(x, y, z, v, vz, dt, yaw, path):
     """Fill ``path`` (n, 4) with the poses (x, y, z, psi) after 1..n steps of constant input.
 
@@ -330,7 +330,7 @@ def _nearby(obstacles, radii, x0, y0, z0, reach, r_uav):
 _BLOCK = 5  # rollout steps per bounding sphere of _static_clearance
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _bounding_sphere(path, k0, k1):
     """The middle point of path[k0:k1] and the farthest distance of those points from it (one pass)."""
     m = (k0 + k1 - 1) // 2
@@ -342,7 +342,7 @@ def _bounding_sphere(path, k0, k1):
     return cx, cy, cz, math.sqrt(r2)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _obstacle_clearance(path, k0, k1, ox, oy, oz, rad):
     """min |p_k - o| - rad over path[k0:k1] with one square root: sqrt and - are monotone in floating point."""
     d2_min = math.inf
@@ -354,7 +354,7 @@ def _obstacle_clearance(path, k0, k1, ox, oy, oz, rad):
     return math.sqrt(d2_min) - rad
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _static_clearance(path, x0, y0, z0, obstacles, rads, lows, cap, stop_below, spheres, seed):
     """min_k min_o |p_k - o| - R_o - r_uav over the rollout, exact below ``cap`` (spec (b5)).
 
@@ -431,7 +431,7 @@ def _mover_track(dt, n_steps, movers_pos, movers_vel):
     return track
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _mover_clearance(path, track, R_uu):
     """min_k min_m |p_k - m(t_k)| - R_uu for the predicted mover positions ``track`` (``_mover_track``).
 
@@ -532,6 +532,26 @@ def _select(score, vs, ws):
 
 
 @numba.njit(cache=True)
+def _yaw_table(psi0, w_axis, dt, n_steps):
+    """(n_w, n_steps, 3): psi_k, cos psi_k, sin psi_k of the rollout of each w, stepped as ``integrate`` does.
+
+    The yaw sequence does not depend on v. The wrap chains of all w advance step by step together:
+    they are independent, so the CPU overlaps them.
+    """
+    yaw = np.empty((w_axis.size, n_steps, 3))
+    for j in range(w_axis.size):
+        yaw[j, 0, 0] = wrap(psi0 + w_axis[j] * dt)
+    for k in range(1, n_steps):
+        for j in range(w_axis.size):
+            yaw[j, k, 0] = wrap(yaw[j, k - 1, 0] + w_axis[j] * dt)
+    for j in range(w_axis.size):
+        for k in range(n_steps):
+            yaw[j, k, 1] = math.cos(yaw[j, k, 0])
+            yaw[j, k, 2] = math.sin(yaw[j, k, 0])
+    return yaw
+
+
+@numba.njit(cache=True)
 def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, obstacles, radii, r_uav,
                  a_max, v_max, w_max, D_cap, dist_cap, movers_pos, movers_vel, R_uu, goal_x, goal_y, la_x, la_y,
                  heading_from_current, lam, progress_reach, vel_target, rot_ref, alpha, kappa,
@@ -547,16 +567,7 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, o
     vs, ws = _window_grid(v_lo, v_hi, w_lo, w_hi, v_res, w_res)
     n_samples = vs.shape[0]
     x0, y0, z0, psi0 = state[0], state[1], state[2], state[3]
-    # The yaw sequence of a rollout depends on w only: one table of psi_k, cos psi_k, sin psi_k per w,
-    # applied exactly as ``integrate`` does.
-    yaw = np.empty((n_w, n_steps, 3))
-    for j in range(n_w):
-        psi = psi0
-        for k in range(n_steps):
-            psi = wrap(psi + w_axis[j] * dt)
-            yaw[j, k, 0] = psi
-            yaw[j, k, 1] = math.cos(psi)
-            yaw[j, k, 2] = math.sin(psi)
+    yaw = _yaw_table(psi0, w_axis, dt, n_steps)
     track = _mover_track(dt, n_steps, movers_pos, movers_vel)
     spheres = np.empty(((n_steps + _BLOCK - 1) // _BLOCK, 4))
     path = np.empty((n_steps, 4))
