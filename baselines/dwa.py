@@ -34,6 +34,7 @@ ABLATIONS = {
     "DWA+E8+E10": (True, True, False),
     "IDWA": (True, True, True),
 }
+_FLOAT_MAX = np.finfo(np.float64).max
 _TIE_TOL = 1e-12  # relative: scores (and |w|) this close count as equal, so the tie rule decides
 
 
@@ -160,7 +161,8 @@ class DWAResult:
 
 
 def _finite(name: str, value) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+    if type(value) is not float and (isinstance(value, bool) or
+                                     not isinstance(value, (int, float, np.integer, np.floating))) \
             or not math.isfinite(value):
         raise ValueError(f"{name}={value!r}: expected a finite number")
     return float(value)
@@ -654,21 +656,24 @@ def _plan_arrays(state, goal, lookahead, obstacles, obstacle_radius, movers_pos,
     return state, goal_xy, la_xy, obstacles, radii, movers_pos, movers_vel
 
 
+@numba.njit(cache=True, inline="always")
+def _all_finite(arr):
+    """Whether every value of a contiguous array is finite; branch-free, so the loop vectorises."""
+    flat = arr.ravel()
+    ok = True
+    for i in range(flat.size):
+        ok &= abs(flat[i]) <= _FLOAT_MAX
+    return ok
+
+
 @numba.njit(cache=True)
 def _valid_values(state, goal, lookahead, obstacles, radii, movers_pos, movers_vel):
     """Whether every value is finite and every radius >= 0 (``_plan_arrays``' value checks in one call)."""
-    for arr in (state, goal, lookahead, radii):
-        for x in arr:
-            if not math.isfinite(x):
-                return False
-    for arr in (obstacles, movers_pos, movers_vel):
-        for x in arr.ravel():
-            if not math.isfinite(x):
-                return False
+    ok = True
     for r in radii:
-        if not r >= 0.0:
-            return False
-    return True
+        ok &= r >= 0.0  # False for nan too
+    return (ok and _all_finite(state) and _all_finite(goal) and _all_finite(lookahead) and _all_finite(obstacles)
+            and _all_finite(movers_pos) and _all_finite(movers_vel))
 
 
 def _rotation_weight(cfg: DWAConfig, clearance_now: float, prev_alignment: float) -> float:
@@ -707,6 +712,9 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
     if not checked:  # the full checks raise for the first bad argument, in argument order
         arrays = _plan_arrays(state, goal, lookahead, obstacles, obstacle_radius, movers_pos, movers_vel, True)
     state, goal_xy, la_xy, obstacles, radii, movers_pos, movers_vel = arrays
+    x, y, _, _, v0, w0, _ = state.tolist()  # Python floats: cheaper than numpy scalars in the glue below
+    goal_x, goal_y = goal_xy.tolist()[:2]
+    la_x, la_y = la_xy.tolist()[:2]
     vz_cmd = _finite("vz_cmd", vz_cmd)
     if math.isnan(clearance_now):
         raise ValueError("clearance_now=nan: expected a number (inf in open space)")
@@ -720,9 +728,9 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
     if n_steps < 1:
         raise ValueError(f"DWAConfig.T_p={cfg.T_p!r} is shorter than one step (UAVLimits.dt={limits.dt!r})")
 
-    v_lo, v_hi, w_lo, w_hi = _window_bounds(state[4], state[5], limits, v_cap)
+    v_lo, v_hi, w_lo, w_hi = _window_bounds(v0, w0, limits, v_cap)
     reach = limits.v_max * cfg.T_p
-    rho_d = math.hypot(goal_xy[0] - state[0], goal_xy[1] - state[1])
+    rho_d = math.hypot(goal_x - x, goal_y - y)
     lam = min(1.0, rho_d / (reach if cfg.R_sw is None else cfg.R_sw)) if cfg.use_goal_dist_correction else 1.0
     if v_ref is not None:
         vel_target = v_ref
@@ -742,9 +750,8 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
         return _plan_kernel(state, v_lo_, v_hi_, w_lo_, w_hi_, cfg.v_res, cfg.w_res, vz_cmd, limits.dt, n_steps,
                             obstacles, radii, limits.r_uav, limits.a_max, limits.v_max, limits.w_max, cfg.D_cap,
                             cfg.D_cap if cfg.dist_cap is None else cfg.dist_cap, movers_pos, movers_vel, cfg.R_uu,
-                            goal_xy[0], goal_xy[1], la_xy[0], la_xy[1],
-                            cfg.heading_ref == "current", lam, reach, vel_target,
-                            state[5] if cfg.rotation_mode == "delta" else 0.0, alpha, cfg.kappa, per_candidate,
+                            goal_x, goal_y, la_x, la_y, cfg.heading_ref == "current", lam, reach, vel_target,
+                            w0 if cfg.rotation_mode == "delta" else 0.0, alpha, cfg.kappa, per_candidate,
                             cfg.beta, cfg.gamma, _rotation_weight(cfg, clearance_now, prev_alignment),
                             cfg.norm == "minmax", exact_clearance)
 
@@ -753,7 +760,7 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
     if pick >= 0:
         return DWAResult(float(vs[pick]), float(ws[pick]), True, int(np.count_nonzero(admissible)), float(score[pick]),
                          endpoint[pick].copy(), float(clearance[pick]), float(alignment[pick]), candidates)
-    brake_w = min(max(state[5], w_lo), w_hi)
+    brake_w = min(max(w0, w_lo), w_hi)
     _, _, _, _, brake_clearance, _, brake_end, brake_alignment = run(v_lo, v_lo, brake_w, brake_w, True)
-    return DWAResult(v_lo, float(brake_w), False, 0, math.nan, brake_end[0].copy(), float(brake_clearance[0]),
+    return DWAResult(v_lo, brake_w, False, 0, math.nan, brake_end[0].copy(), float(brake_clearance[0]),
                      float(brake_alignment[0]), candidates)
