@@ -358,20 +358,24 @@ def _obstacle_clearance(path, k0, k1, ox, oy, oz, rad):
 
 @numba.njit(cache=True, inline="always")
 def _static_clearance(path, x0, y0, z0, obstacles, rads, lows, cap, stop_below, spheres, seed):
-    """min_k min_o |p_k - o| - R_o - r_uav over the rollout, exact below ``cap`` (spec (b5)).
+    """min_k min_o |p_k - o| - R_o - r_uav over the rollout, exact below ``cap`` (spec (b5)), and that o.
 
     ``obstacles``, ``rads`` (R_o + r_uav) and ``lows`` (non-decreasing lower bounds of |o - start| - rads)
     come from ``_nearby``.
     ``spheres`` is scratch space (n_blocks, 4) for the bounding spheres of the blocks.
+    ``seed`` is an obstacle likely to be the nearest (the previous sample's; -1: none). Its clearance
+    over the whole rollout is an attained value, so the search starts from it and the bounds below
+    prune from the first obstacle on; the result is the same as without it.
     Returns early once the value drops below ``stop_below`` (d_brake: the sample is inadmissible
-    whatever the exact value). The minimum does not depend on the order in which obstacles and
-    points are visited; nearest first finds a small minimum early. Only obstacles that cannot
+    whatever the exact value), with the first such block value in the visiting order (a seed value
+    below it is not returned: the search then starts at ``stop_below``). Otherwise the minimum does not depend on the order in which
+    obstacles and points are visited; nearest first finds a small minimum early. Only obstacles that cannot
     lower the current minimum are passed over, each bound with ``_SKIP_MARGIN`` of slack over float
     rounding: those whose surface is farther than the minimum from the sphere around the start
     through the rollout's farthest point end the loop (by bucket, nearest first); those farther from the
     bounding sphere of the whole rollout, or of a block of ``_BLOCK`` steps, are skipped. A block
-    that may come closer is evaluated whole on squared distances with one square root: sqrt and
-    the subtraction are monotone in floating point, so that is the block's exact minimum.
+    that may come closer is evaluated whole (``_obstacle_clearance``): its exact minimum.
+    Returns (value, index of the obstacle that gave it, or -1 if none is below ``cap``).
     """
     n = path.shape[0]
     n_blocks = (n + _BLOCK - 1) // _BLOCK
@@ -395,7 +399,7 @@ def _static_clearance(path, x0, y0, z0, obstacles, rads, lows, cap, stop_below, 
     r_centre += _SKIP_MARGIN
     r_start += 2.0 * _SKIP_MARGIN
     best, nearest = cap, -1
-    if seed >= 0:  # an attained value: the loop below then only looks for smaller ones
+    if seed >= 0:
         c = _obstacle_clearance(path, 0, n, obstacles[seed, 0], obstacles[seed, 1], obstacles[seed, 2], rads[seed])
         if c < best:
             best, nearest = max(c, stop_below), seed
@@ -758,8 +762,9 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
     pick, vs, ws, score, clearance, admissible, endpoint, alignment = run(v_lo, v_hi, w_lo, w_hi, False)
     candidates = DWACandidates(vs, ws, admissible, clearance, score, endpoint)
     if pick >= 0:
-        return DWAResult(float(vs[pick]), float(ws[pick]), True, int(np.count_nonzero(admissible)), float(score[pick]),
-                         endpoint[pick].copy(), float(clearance[pick]), float(alignment[pick]), candidates)
+        return DWAResult(float(vs[pick]), float(ws[pick]), True, int(np.count_nonzero(admissible)),
+                         float(score[pick]), endpoint[pick].copy(), float(clearance[pick]), float(alignment[pick]),
+                         candidates)
     brake_w = min(max(w0, w_lo), w_hi)
     _, _, _, _, brake_clearance, _, brake_end, brake_alignment = run(v_lo, v_lo, brake_w, brake_w, True)
     return DWAResult(v_lo, brake_w, False, 0, math.nan, brake_end[0].copy(), float(brake_clearance[0]),
