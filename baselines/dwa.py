@@ -345,6 +345,87 @@ def _bounding_sphere(path, k0, k1):
 
 
 @numba.njit(cache=True, inline="always")
+def _enclose(spheres, out):
+    """Write into ``out`` (4,) a sphere (centre, radius) around all ``spheres`` (n, 4), with _SKIP_MARGIN.
+
+    Centred on their bounding box; the radius reaches the farthest sphere surface.
+    """
+    lo_x = lo_y = lo_z = math.inf
+    hi_x = hi_y = hi_z = -math.inf
+    for i in range(spheres.shape[0]):
+        bx, by, bz, r = spheres[i, 0], spheres[i, 1], spheres[i, 2], spheres[i, 3]
+        lo_x, hi_x = min(lo_x, bx - r), max(hi_x, bx + r)
+        lo_y, hi_y = min(lo_y, by - r), max(hi_y, by + r)
+        lo_z, hi_z = min(lo_z, bz - r), max(hi_z, bz + r)
+    cx, cy, cz = 0.5 * (lo_x + hi_x), 0.5 * (lo_y + hi_y), 0.5 * (lo_z + hi_z)
+    r = 0.0
+    for i in range(spheres.shape[0]):
+        dx, dy, dz = spheres[i, 0] - cx, spheres[i, 1] - cy, spheres[i, 2] - cz
+        r = max(r, math.sqrt(dx * dx + dy * dy + dz * dz) + spheres[i, 3])
+    out[0], out[1], out[2], out[3] = cx, cy, cz, r + _SKIP_MARGIN
+
+
+@numba.njit(cache=True, inline="always")
+def _path_spheres(path, x0, y0, z0, spheres):
+    """Bounding spheres of one rollout; returns a bound on its points' distance from (x0, y0, z0).
+
+    ``spheres`` (n_blocks + 1, 4) gets one sphere per block of ``_BLOCK`` steps, then one around
+    those. All keep _SKIP_MARGIN of slack over float rounding.
+    """
+    n = path.shape[0]
+    n_blocks = spheres.shape[0] - 1
+    r_start = 0.0
+    for b in range(n_blocks):
+        bx, by, bz, r = _bounding_sphere(path, b * _BLOCK, min(n, (b + 1) * _BLOCK))
+        spheres[b, 0], spheres[b, 1], spheres[b, 2], spheres[b, 3] = bx, by, bz, r + _SKIP_MARGIN
+        dx, dy, dz = bx - x0, by - y0, bz - z0
+        r_start = max(r_start, math.sqrt(dx * dx + dy * dy + dz * dz) + r)
+    _enclose(spheres[:n_blocks], spheres[n_blocks])
+    return r_start + 2.0 * _SKIP_MARGIN
+
+
+@numba.njit(cache=True, inline="always")
+def _within(sphere, x, y, z, gap):
+    """Whether (x, y, z) is closer than ``gap`` to the sphere (centre, radius) ``sphere``."""
+    lim = sphere[3] + gap
+    dx, dy, dz = x - sphere[0], y - sphere[1], z - sphere[2]
+    return dx * dx + dy * dy + dz * dz < lim * lim
+
+
+@numba.njit(cache=True)
+def _candidates(obstacles, rads, lows, spheres, r_start, bar):
+    """The obstacles (in order) that may come closer than ``bar`` to some rollout, and where, once per cycle.
+
+    ``spheres`` (n_samples, n_blocks + 1, 4) and ``r_start`` (the largest reach) come from
+    ``_path_spheres``; ``obstacles``, ``rads``, ``lows`` from ``_nearby``. Returns the indices and a
+    (n, n_blocks) mask of the blocks that may come that close, tested against spheres around that
+    block of every rollout: what is left out is at ``bar`` or beyond for every rollout, with
+    _SKIP_MARGIN of slack.
+    """
+    n_blocks = spheres.shape[1] - 1
+    fan = np.empty((n_blocks + 1, 4))
+    for b in range(n_blocks + 1):
+        _enclose(spheres[:, b], fan[b])
+    keep = np.empty(obstacles.shape[0], dtype=np.int64)
+    mask = np.empty((obstacles.shape[0], n_blocks), dtype=np.bool_)
+    n = 0
+    for o in range(obstacles.shape[0]):
+        if lows[o] >= r_start + bar:
+            break
+        ox, oy, oz, gap = obstacles[o, 0], obstacles[o, 1], obstacles[o, 2], bar + rads[o]
+        if not _within(fan[n_blocks], ox, oy, oz, gap):
+            continue
+        close = False
+        for b in range(n_blocks):
+            mask[n, b] = _within(fan[b], ox, oy, oz, gap)
+            close |= mask[n, b]
+        if close:
+            keep[n] = o
+            n += 1
+    return keep[:n], mask[:n]
+
+
+@numba.njit(cache=True, inline="always")
 def _obstacle_clearance(path, k0, k1, ox, oy, oz, rad):
     """min |p_k - o| - rad over path[k0:k1] with one square root: sqrt and - are monotone in floating point."""
     d2_min = math.inf
@@ -356,73 +437,69 @@ def _obstacle_clearance(path, k0, k1, ox, oy, oz, rad):
     return math.sqrt(d2_min) - rad
 
 
-@numba.njit(cache=True, inline="always")
-def _static_clearance(path, x0, y0, z0, obstacles, rads, lows, cap, stop_below, spheres, seed):
-    """min_k min_o |p_k - o| - R_o - r_uav over the rollout, exact below ``cap`` (spec (b5)), and that o.
+@numba.njit(cache=True)
+def _search_starts(paths, spheres, obstacles, rads, caps, stop_below):
+    """Where each sample's clearance search starts: its cap, or an attained value below it.
 
-    ``obstacles``, ``rads`` (R_o + r_uav) and ``lows`` (non-decreasing lower bounds of |o - start| - rads)
-    come from ``_nearby``.
-    ``spheres`` is scratch space (n_blocks, 4) for the bounding spheres of the blocks.
-    ``seed`` is an obstacle likely to be the nearest (the previous sample's; -1: none). Its clearance
-    over the whole rollout is an attained value, so the search starts from it and the bounds below
-    prune from the first obstacle on; the result is the same as without it.
+    The attained value is the clearance of the obstacle nearest the centre of the middle rollout,
+    which is likely near all of them; it is raised to ``stop_below`` where it is below (there the
+    first value below ``stop_below`` in the visiting order is searched for instead).
+    """
+    mid = spheres[paths.shape[0] // 2, spheres.shape[1] - 1]
+    seed, near = -1, math.inf
+    for o in range(obstacles.shape[0]):
+        dx, dy, dz = obstacles[o, 0] - mid[0], obstacles[o, 1] - mid[1], obstacles[o, 2] - mid[2]
+        c = math.sqrt(dx * dx + dy * dy + dz * dz) - rads[o]
+        if c < near:
+            seed, near = o, c
+    start = caps.copy()
+    if seed >= 0:
+        for i in range(paths.shape[0]):
+            c = _obstacle_clearance(paths[i], 0, paths.shape[1], obstacles[seed, 0], obstacles[seed, 1],
+                                    obstacles[seed, 2], rads[seed])
+            if c < caps[i]:
+                start[i] = max(c, stop_below[i])
+    return start
+
+
+@numba.njit(cache=True, inline="always")
+def _static_clearance(path, spheres, r_start, obstacles, rads, lows, keep, mask, best, stop_below):
+    """min_k min_o |p_k - o| - R_o - r_uav over the rollout, exact below the start ``best`` (spec (b5)).
+
+    ``best`` is the cap or an attained value (``_search_starts``). ``spheres`` and ``r_start`` come
+    from ``_path_spheres``; ``obstacles``, ``rads`` (R_o + r_uav) and ``lows`` (non-decreasing lower
+    bounds of |o - start| - rads) from ``_nearby``; ``keep`` and ``mask`` from ``_candidates`` with a
+    bar of at least ``best``: the only obstacles, and their blocks, that may come closer.
     Returns early once the value drops below ``stop_below`` (d_brake: the sample is inadmissible
-    whatever the exact value), with the first such block value in the visiting order (a seed value
-    below it is not returned: the search then starts at ``stop_below``). Otherwise the minimum does not depend on the order in which
-    obstacles and points are visited; nearest first finds a small minimum early. Only obstacles that cannot
-    lower the current minimum are passed over, each bound with ``_SKIP_MARGIN`` of slack over float
-    rounding: those whose surface is farther than the minimum from the sphere around the start
-    through the rollout's farthest point end the loop (by bucket, nearest first); those farther from the
-    bounding sphere of the whole rollout, or of a block of ``_BLOCK`` steps, are skipped. A block
-    that may come closer is evaluated whole (``_obstacle_clearance``): its exact minimum.
-    Returns (value, index of the obstacle that gave it, or -1 if none is below ``cap``).
+    whatever the exact value), with the first such block value in the visiting order (obstacles
+    as ``_nearby`` lists them, blocks along the rollout). Otherwise the minimum does not depend on
+    the order in which obstacles and points are visited; nearest first finds a small minimum early.
+    Only obstacles that cannot lower the current minimum are passed over, each bound with
+    ``_SKIP_MARGIN`` of slack over float rounding: those whose surface is farther than the minimum
+    from the sphere around the start through the rollout's farthest point end the loop (by bucket,
+    nearest first); those farther from the bounding sphere of the whole rollout, or of a block of
+    ``_BLOCK`` steps, are skipped. A block that may come closer is evaluated whole
+    (``_obstacle_clearance``): its exact minimum.
     """
     n = path.shape[0]
-    n_blocks = (n + _BLOCK - 1) // _BLOCK
-    r_start = 0.0
-    lo_x = lo_y = lo_z = math.inf
-    hi_x = hi_y = hi_z = -math.inf
-    for b in range(n_blocks):
-        bx, by, bz, r = _bounding_sphere(path, b * _BLOCK, min(n, (b + 1) * _BLOCK))
-        spheres[b, 0], spheres[b, 1], spheres[b, 2], spheres[b, 3] = bx, by, bz, r + _SKIP_MARGIN
-        dx, dy, dz = bx - x0, by - y0, bz - z0
-        r_start = max(r_start, math.sqrt(dx * dx + dy * dy + dz * dz) + r)
-        lo_x, hi_x = min(lo_x, bx - r), max(hi_x, bx + r)
-        lo_y, hi_y = min(lo_y, by - r), max(hi_y, by + r)
-        lo_z, hi_z = min(lo_z, bz - r), max(hi_z, bz + r)
-    # one sphere around the block spheres: every point is within r_centre of (cx, cy, cz)
-    cx, cy, cz = 0.5 * (lo_x + hi_x), 0.5 * (lo_y + hi_y), 0.5 * (lo_z + hi_z)
-    r_centre = 0.0
-    for b in range(n_blocks):
-        dx, dy, dz = spheres[b, 0] - cx, spheres[b, 1] - cy, spheres[b, 2] - cz
-        r_centre = max(r_centre, math.sqrt(dx * dx + dy * dy + dz * dz) + spheres[b, 3])
-    r_centre += _SKIP_MARGIN
-    r_start += 2.0 * _SKIP_MARGIN
-    best, nearest = cap, -1
-    if seed >= 0:
-        c = _obstacle_clearance(path, 0, n, obstacles[seed, 0], obstacles[seed, 1], obstacles[seed, 2], rads[seed])
-        if c < best:
-            best, nearest = max(c, stop_below), seed
-    for o in range(obstacles.shape[0]):
+    n_blocks = spheres.shape[0] - 1
+    for q in range(keep.shape[0]):
+        o = keep[q]
         if lows[o] >= r_start + best:
             break
         ox, oy, oz = obstacles[o, 0], obstacles[o, 1], obstacles[o, 2]
         rad = rads[o]
-        lim = r_centre + best + rad
-        dx, dy, dz = ox - cx, oy - cy, oz - cz
-        if dx * dx + dy * dy + dz * dz >= lim * lim:
+        if not _within(spheres[n_blocks], ox, oy, oz, best + rad):
             continue
         for b in range(n_blocks):
-            lim = spheres[b, 3] + best + rad
-            dx, dy, dz = ox - spheres[b, 0], oy - spheres[b, 1], oz - spheres[b, 2]
-            if dx * dx + dy * dy + dz * dz >= lim * lim:
+            if not mask[q, b] or not _within(spheres[b], ox, oy, oz, best + rad):
                 continue
             c = _obstacle_clearance(path, b * _BLOCK, min(n, (b + 1) * _BLOCK), ox, oy, oz, rad)
             if c < best:
-                best, nearest = c, o
+                best = c
                 if best < stop_below:
-                    return best, nearest
-    return best, nearest
+                    return best
+    return best
 
 
 @numba.njit(cache=True)
@@ -575,8 +652,13 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, o
     x0, y0, z0, psi0 = state[0], state[1], state[2], state[3]
     yaw = _yaw_table(psi0, w_axis, dt, n_steps)
     track = _mover_track(dt, n_steps, movers_pos, movers_vel)
-    spheres = np.empty(((n_steps + _BLOCK - 1) // _BLOCK, 4))
-    path = np.empty((n_steps, 4))
+    n_blocks = (n_steps + _BLOCK - 1) // _BLOCK
+    paths = np.empty((n_samples, n_steps, 4))
+    spheres = np.empty((n_samples, n_blocks + 1, 4))
+    reach = np.empty(n_samples)
+    for i in range(n_samples):
+        _rollout_table(x0, y0, z0, vs[i], vz, dt, yaw[i % n_w], paths[i])
+        reach[i] = _path_spheres(paths[i], x0, y0, z0, spheres[i])
     clearance = np.empty(n_samples)
     admissible = np.zeros(n_samples, dtype=np.bool_)
     endpoint = np.empty((n_samples, 3))
@@ -588,17 +670,17 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, o
     rho_d = math.hypot(goal_x - x0, goal_y - y0)
     bearing_now = math.atan2(goal_y - y0, goal_x - x0)
     # no rollout gets farther than the fastest one; beyond its reach plus the clearance cap nothing counts
-    reach = dt * n_steps * math.sqrt(v_hi * v_hi + vz * vz) + max(D_cap, v_hi * v_hi / (2.0 * a_max)) + r_uav
-    obstacles, rads, lows = _nearby(obstacles, radii, x0, y0, z0, reach, r_uav)
-    nearest = 0 if obstacles.shape[0] > 0 else -1
+    far = dt * n_steps * math.sqrt(v_hi * v_hi + vz * vz) + max(D_cap, v_hi * v_hi / (2.0 * a_max)) + r_uav
+    obstacles, rads, lows = _nearby(obstacles, radii, x0, y0, z0, far, r_uav)
+    d_brake = vs * vs / (2.0 * a_max)
+    caps = np.maximum(D_cap, d_brake)
+    stop_below = np.full(n_samples, -math.inf) if exact_clearance else d_brake
+    start = _search_starts(paths, spheres, obstacles, rads, caps, stop_below)
+    keep, mask = _candidates(obstacles, rads, lows, spheres, reach.max(), start.max())
     for i in range(n_samples):
-        v, w = vs[i], ws[i]
-        _rollout_table(x0, y0, z0, v, vz, dt, yaw[i % n_w], path)
-        d_brake = v * v / (2.0 * a_max)
-        c, o = _static_clearance(path, x0, y0, z0, obstacles, rads, lows, max(D_cap, d_brake),
-                                 -math.inf if exact_clearance else d_brake, spheres, nearest)
-        nearest = o if o >= 0 else nearest
-        ok = c > 0.0 and c >= d_brake
+        v, w, path = vs[i], ws[i], paths[i]
+        c = _static_clearance(path, spheres[i], reach[i], obstacles, rads, lows, keep, mask, start[i], stop_below[i])
+        ok = c > 0.0 and c >= d_brake[i]
         if (ok or exact_clearance) and movers_pos.shape[0] > 0:
             c_mover = _mover_clearance(path, track, R_uu)
             ok = ok and c_mover >= 0.0
