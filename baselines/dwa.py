@@ -270,7 +270,7 @@ _SKIP_MARGIN = 1e-9  # m: the geometric skip tests below keep this much slack ov
 
 @numba.njit(cache=True, inline="always")
 def _rollout_table(x, y, z, v, vz, dt, yaw, path):
-    """Fill ``path`` (n, 4) with the poses (x, y, z, psi) after 1..n steps of constant input.
+    """Fill ``path`` (n, 3) with the positions after 1..n steps of constant input.
 
     The arithmetic of ``integrate``, with its yaw sequence precomputed per w (it does not depend on
     v): yaw[k] = (psi_k, cos psi_k, sin psi_k).
@@ -280,7 +280,6 @@ def _rollout_table(x, y, z, v, vz, dt, yaw, path):
         path[k, 0] = x
         path[k, 1] = y
         path[k, 2] = z
-        path[k, 3] = yaw[k, 0]
 
 
 _NEAR_BIN = 0.05  # m: bucket width of the nearest-first order of _nearby
@@ -653,7 +652,7 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, o
     yaw = _yaw_table(psi0, w_axis, dt, n_steps)
     track = _mover_track(dt, n_steps, movers_pos, movers_vel)
     n_blocks = (n_steps + _BLOCK - 1) // _BLOCK
-    paths = np.empty((n_samples, n_steps, 4))
+    paths = np.empty((n_samples, n_steps, 3))
     spheres = np.empty((n_samples, n_blocks + 1, 4))
     reach = np.empty(n_samples)
     for i in range(n_samples):
@@ -688,8 +687,8 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, o
         clearance[i] = c
         dist[i] = min(c, dist_cap)
         admissible[i] = ok
-        ex, ey, psi_end = path[n_steps - 1, 0], path[n_steps - 1, 1], path[n_steps - 1, 3]
-        endpoint[i, :] = path[n_steps - 1, :3]
+        ex, ey, psi_end = path[n_steps - 1, 0], path[n_steps - 1, 1], yaw[i % n_w, n_steps - 1, 0]
+        endpoint[i, :] = path[n_steps - 1]
         alignment[i] = _alignment(la_x - x0, la_y - y0, ex - x0, ey - y0, psi_end)
         bearing = bearing_now if heading_from_current else math.atan2(goal_y - ey, goal_x - ex)
         h = _heading(bearing, psi_end)
