@@ -843,10 +843,9 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
     pick, vs, ws, score, clearance, admissible, endpoint, alignment = run(v_lo, v_hi, w_lo, w_hi, False)
     candidates = DWACandidates(vs, ws, admissible, clearance, score, endpoint)
     if pick >= 0:
-        return DWAResult(float(vs[pick]), float(ws[pick]), True, int(np.count_nonzero(admissible)),
-                         float(score[pick]), endpoint[pick].copy(), float(clearance[pick]), float(alignment[pick]),
-                         candidates)
+        return DWAResult(vs.item(pick), ws.item(pick), True, int(np.count_nonzero(admissible)), score.item(pick),
+                         endpoint[pick].copy(), clearance.item(pick), alignment.item(pick), candidates)
     brake_w = min(max(w0, w_lo), w_hi)
     _, _, _, _, brake_clearance, _, brake_end, brake_alignment = run(v_lo, v_lo, brake_w, brake_w, True)
-    return DWAResult(v_lo, brake_w, False, 0, math.nan, brake_end[0].copy(), float(brake_clearance[0]),
-                     float(brake_alignment[0]), candidates)
+    return DWAResult(v_lo, brake_w, False, 0, math.nan, brake_end[0].copy(), brake_clearance.item(0),
+                     brake_alignment.item(0), candidates)
