@@ -674,6 +674,7 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, o
     d_brake = vs * vs / (2.0 * a_max)
     caps = np.maximum(D_cap, d_brake)
     stop_below = np.full(n_samples, -math.inf) if exact_clearance else d_brake
+    # every search starts at its cap or an attained value; one candidate list serves all rollouts
     start = _search_starts(paths, spheres, obstacles, rads, caps, stop_below)
     keep, mask = _candidates(obstacles, rads, lows, spheres, reach.max(), start.max())
     for i in range(n_samples):
