@@ -34,6 +34,7 @@ ABLATIONS = {
     "DWA+E8+E10": (True, True, False),
     "IDWA": (True, True, True),
 }
+_FLOAT_MAX = np.finfo(np.float64).max
 _TIE_TOL = 1e-12  # relative: scores (and |w|) this close count as equal, so the tie rule decides
 
 
@@ -160,18 +161,20 @@ class DWAResult:
 
 
 def _finite(name: str, value) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+    if type(value) is not float and (isinstance(value, bool) or
+                                     not isinstance(value, (int, float, np.integer, np.floating))) \
             or not math.isfinite(value):
         raise ValueError(f"{name}={value!r}: expected a finite number")
     return float(value)
 
 
-def _array(name: str, value, shape_text: str, ndim: int, last: tuple | None = None) -> np.ndarray:
-    """A contiguous float64 array with ``ndim`` dims whose last dim is in ``last``; finite values only."""
+def _array(name: str, value, shape_text: str, ndim: int, last: tuple | None = None,
+           finite: bool = True) -> np.ndarray:
+    """A contiguous float64 array with ``ndim`` dims whose last dim is in ``last``; finite values only if ``finite``."""
     arr = np.ascontiguousarray(value, dtype=np.float64)
     if arr.ndim != ndim or (last is not None and arr.shape[-1] not in last):
         raise ValueError(f"{name}: expected shape {shape_text}, got {arr.shape}")
-    if not np.isfinite(arr).all():
+    if finite and not np.isfinite(arr).all():
         raise ValueError(f"{name}: expected finite values")
     return arr
 
@@ -265,9 +268,9 @@ def _window_grid(v_lo, v_hi, w_lo, w_hi, v_res, w_res):
 _SKIP_MARGIN = 1e-9  # m: the geometric skip tests below keep this much slack over float rounding
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _rollout_table(x, y, z, v, vz, dt, yaw, path):
-    """Fill ``path`` (n, 4) with the poses (x, y, z, psi) after 1..n steps of constant input.
+    """Fill ``path`` (n, 3) with the positions after 1..n steps of constant input.
 
     The arithmetic of ``integrate``, with its yaw sequence precomputed per w (it does not depend on
     v): yaw[k] = (psi_k, cos psi_k, sin psi_k).
@@ -277,7 +280,6 @@ def _rollout_table(x, y, z, v, vz, dt, yaw, path):
         path[k, 0] = x
         path[k, 1] = y
         path[k, 2] = z
-        path[k, 3] = yaw[k, 0]
 
 
 _NEAR_BIN = 0.05  # m: bucket width of the nearest-first order of _nearby
@@ -329,17 +331,11 @@ def _nearby(obstacles, radii, x0, y0, z0, reach, r_uav):
 _BLOCK = 5  # rollout steps per bounding sphere of _static_clearance
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _bounding_sphere(path, k0, k1):
-    """Centre of the bounding box of path[k0:k1] and the farthest distance of those points from it."""
-    lo_x = hi_x = path[k0, 0]
-    lo_y = hi_y = path[k0, 1]
-    lo_z = hi_z = path[k0, 2]
-    for k in range(k0 + 1, k1):
-        lo_x, hi_x = min(lo_x, path[k, 0]), max(hi_x, path[k, 0])
-        lo_y, hi_y = min(lo_y, path[k, 1]), max(hi_y, path[k, 1])
-        lo_z, hi_z = min(lo_z, path[k, 2]), max(hi_z, path[k, 2])
-    cx, cy, cz = 0.5 * (lo_x + hi_x), 0.5 * (lo_y + hi_y), 0.5 * (lo_z + hi_z)
+    """The middle point of path[k0:k1] and the farthest distance of those points from it (one pass)."""
+    m = (k0 + k1 - 1) // 2
+    cx, cy, cz = path[m, 0], path[m, 1], path[m, 2]
     r2 = 0.0
     for k in range(k0, k1):
         dx, dy, dz = path[k, 0] - cx, path[k, 1] - cy, path[k, 2] - cz
@@ -347,67 +343,157 @@ def _bounding_sphere(path, k0, k1):
     return cx, cy, cz, math.sqrt(r2)
 
 
-@numba.njit(cache=True)
-def _static_clearance(path, x0, y0, z0, obstacles, rads, lows, cap, stop_below, spheres):
-    """min_k min_o |p_k - o| - R_o - r_uav over the rollout, exact below ``cap`` (spec (b5)).
+@numba.njit(cache=True, inline="always")
+def _enclose(spheres, out):
+    """Write into ``out`` (4,) a sphere (centre, radius) around all ``spheres`` (n, 4), with _SKIP_MARGIN.
 
-    ``obstacles``, ``rads`` (R_o + r_uav) and ``lows`` (non-decreasing lower bounds of |o - start| - rads)
-    come from ``_nearby``.
-    ``spheres`` is scratch space (n_blocks, 4) for the bounding spheres of the blocks.
-    Returns early once the value drops below ``stop_below`` (d_brake: the sample is inadmissible
-    whatever the exact value). The minimum does not depend on the order in which obstacles and
-    points are visited; nearest first finds a small minimum early. Only obstacles that cannot
-    lower the current minimum are passed over, each bound with ``_SKIP_MARGIN`` of slack over float
-    rounding: those whose surface is farther than the minimum from the sphere around the start
-    through the rollout's farthest point end the loop (by bucket, nearest first); those farther from the
-    bounding sphere of the whole rollout, or of a block of ``_BLOCK`` steps, are skipped. A block
-    that may come closer is evaluated whole on squared distances with one square root: sqrt and
-    the subtraction are monotone in floating point, so that is the block's exact minimum.
+    Centred on their bounding box; the radius reaches the farthest sphere surface.
     """
-    n = path.shape[0]
-    n_blocks = (n + _BLOCK - 1) // _BLOCK
-    r2_start = 0.0
-    for k in range(n):
-        dx, dy, dz = path[k, 0] - x0, path[k, 1] - y0, path[k, 2] - z0
-        r2_start = max(r2_start, dx * dx + dy * dy + dz * dz)
-    r_start = math.sqrt(r2_start) + _SKIP_MARGIN
     lo_x = lo_y = lo_z = math.inf
     hi_x = hi_y = hi_z = -math.inf
-    for b in range(n_blocks):
-        bx, by, bz, r = _bounding_sphere(path, b * _BLOCK, min(n, (b + 1) * _BLOCK))
-        spheres[b, 0], spheres[b, 1], spheres[b, 2], spheres[b, 3] = bx, by, bz, r + _SKIP_MARGIN
+    for i in range(spheres.shape[0]):
+        bx, by, bz, r = spheres[i, 0], spheres[i, 1], spheres[i, 2], spheres[i, 3]
         lo_x, hi_x = min(lo_x, bx - r), max(hi_x, bx + r)
         lo_y, hi_y = min(lo_y, by - r), max(hi_y, by + r)
         lo_z, hi_z = min(lo_z, bz - r), max(hi_z, bz + r)
-    # one sphere around the block spheres: every point is within r_centre of (cx, cy, cz)
     cx, cy, cz = 0.5 * (lo_x + hi_x), 0.5 * (lo_y + hi_y), 0.5 * (lo_z + hi_z)
-    r_centre = 0.0
+    r = 0.0
+    for i in range(spheres.shape[0]):
+        dx, dy, dz = spheres[i, 0] - cx, spheres[i, 1] - cy, spheres[i, 2] - cz
+        r = max(r, math.sqrt(dx * dx + dy * dy + dz * dz) + spheres[i, 3])
+    out[0], out[1], out[2], out[3] = cx, cy, cz, r + _SKIP_MARGIN
+
+
+@numba.njit(cache=True, inline="always")
+def _path_spheres(path, x0, y0, z0, spheres):
+    """Bounding spheres of one rollout; returns a bound on its points' distance from (x0, y0, z0).
+
+    ``spheres`` (n_blocks + 1, 4) gets one sphere per block of ``_BLOCK`` steps, then one around
+    those. All keep _SKIP_MARGIN of slack over float rounding.
+    """
+    n = path.shape[0]
+    n_blocks = spheres.shape[0] - 1
+    r_start = 0.0
     for b in range(n_blocks):
-        dx, dy, dz = spheres[b, 0] - cx, spheres[b, 1] - cy, spheres[b, 2] - cz
-        r_centre = max(r_centre, math.sqrt(dx * dx + dy * dy + dz * dz) + spheres[b, 3])
-    r_centre += _SKIP_MARGIN
-    best = cap
+        bx, by, bz, r = _bounding_sphere(path, b * _BLOCK, min(n, (b + 1) * _BLOCK))
+        spheres[b, 0], spheres[b, 1], spheres[b, 2], spheres[b, 3] = bx, by, bz, r + _SKIP_MARGIN
+        dx, dy, dz = bx - x0, by - y0, bz - z0
+        r_start = max(r_start, math.sqrt(dx * dx + dy * dy + dz * dz) + r)
+    _enclose(spheres[:n_blocks], spheres[n_blocks])
+    return r_start + 2.0 * _SKIP_MARGIN
+
+
+@numba.njit(cache=True, inline="always")
+def _within(sphere, x, y, z, gap):
+    """Whether (x, y, z) is closer than ``gap`` to the sphere (centre, radius) ``sphere``."""
+    lim = sphere[3] + gap
+    dx, dy, dz = x - sphere[0], y - sphere[1], z - sphere[2]
+    return dx * dx + dy * dy + dz * dz < lim * lim
+
+
+@numba.njit(cache=True)
+def _candidates(obstacles, rads, lows, spheres, r_start, bar):
+    """The obstacles (in order) that may come closer than ``bar`` to some rollout, and where, once per cycle.
+
+    ``spheres`` (n_samples, n_blocks + 1, 4) and ``r_start`` (the largest reach) come from
+    ``_path_spheres``; ``obstacles``, ``rads``, ``lows`` from ``_nearby``. Returns the indices and a
+    (n, n_blocks) mask of the blocks that may come that close, tested against spheres around that
+    block of every rollout: what is left out is at ``bar`` or beyond for every rollout, with
+    _SKIP_MARGIN of slack.
+    """
+    n_blocks = spheres.shape[1] - 1
+    fan = np.empty((n_blocks + 1, 4))
+    for b in range(n_blocks + 1):
+        _enclose(spheres[:, b], fan[b])
+    keep = np.empty(obstacles.shape[0], dtype=np.int64)
+    mask = np.empty((obstacles.shape[0], n_blocks), dtype=np.bool_)
+    n = 0
     for o in range(obstacles.shape[0]):
+        if lows[o] >= r_start + bar:
+            break
+        ox, oy, oz, gap = obstacles[o, 0], obstacles[o, 1], obstacles[o, 2], bar + rads[o]
+        if not _within(fan[n_blocks], ox, oy, oz, gap):
+            continue
+        close = False
+        for b in range(n_blocks):
+            mask[n, b] = _within(fan[b], ox, oy, oz, gap)
+            close |= mask[n, b]
+        if close:
+            keep[n] = o
+            n += 1
+    return keep[:n], mask[:n]
+
+
+@numba.njit(cache=True, inline="always")
+def _obstacle_clearance(path, k0, k1, ox, oy, oz, rad):
+    """min |p_k - o| - rad over path[k0:k1] with one square root: sqrt and - are monotone in floating point."""
+    d2_min = math.inf
+    for k in range(k0, k1):
+        dx, dy, dz = path[k, 0] - ox, path[k, 1] - oy, path[k, 2] - oz
+        d2 = dx * dx + dy * dy + dz * dz
+        if d2 < d2_min:
+            d2_min = d2
+    return math.sqrt(d2_min) - rad
+
+
+@numba.njit(cache=True)
+def _search_starts(paths, spheres, obstacles, rads, caps, stop_below):
+    """Where each sample's clearance search starts: its cap, or an attained value below it.
+
+    The attained value is the clearance of the obstacle nearest the centre of the middle rollout,
+    which is likely near all of them; it is raised to ``stop_below`` where it is below (there the
+    first value below ``stop_below`` in the visiting order is searched for instead).
+    """
+    mid = spheres[paths.shape[0] // 2, spheres.shape[1] - 1]
+    seed, near = -1, math.inf
+    for o in range(obstacles.shape[0]):
+        dx, dy, dz = obstacles[o, 0] - mid[0], obstacles[o, 1] - mid[1], obstacles[o, 2] - mid[2]
+        c = math.sqrt(dx * dx + dy * dy + dz * dz) - rads[o]
+        if c < near:
+            seed, near = o, c
+    start = caps.copy()
+    if seed >= 0:
+        for i in range(paths.shape[0]):
+            c = _obstacle_clearance(paths[i], 0, paths.shape[1], obstacles[seed, 0], obstacles[seed, 1],
+                                    obstacles[seed, 2], rads[seed])
+            if c < caps[i]:
+                start[i] = max(c, stop_below[i])
+    return start
+
+
+@numba.njit(cache=True, inline="always")
+def _static_clearance(path, spheres, r_start, obstacles, rads, lows, keep, mask, best, stop_below):
+    """min_k min_o |p_k - o| - R_o - r_uav over the rollout, exact below the start ``best`` (spec (b5)).
+
+    ``best`` is the cap or an attained value (``_search_starts``). ``spheres`` and ``r_start`` come
+    from ``_path_spheres``; ``obstacles``, ``rads`` (R_o + r_uav) and ``lows`` (non-decreasing lower
+    bounds of |o - start| - rads) from ``_nearby``; ``keep`` and ``mask`` from ``_candidates`` with a
+    bar of at least ``best``: the only obstacles, and their blocks, that may come closer.
+    Returns early once the value drops below ``stop_below`` (d_brake: the sample is inadmissible
+    whatever the exact value), with the first such block value in the visiting order (obstacles
+    as ``_nearby`` lists them, blocks along the rollout). Otherwise the minimum does not depend on
+    the order in which obstacles and points are visited; nearest first finds a small minimum early.
+    Only obstacles that cannot lower the current minimum are passed over, each bound with
+    ``_SKIP_MARGIN`` of slack over float rounding: those whose surface is farther than the minimum
+    from the sphere around the start through the rollout's farthest point end the loop (by bucket,
+    nearest first); those farther from the bounding sphere of the whole rollout, or of a block of
+    ``_BLOCK`` steps, are skipped. A block that may come closer is evaluated whole
+    (``_obstacle_clearance``): its exact minimum.
+    """
+    n = path.shape[0]
+    n_blocks = spheres.shape[0] - 1
+    for q in range(keep.shape[0]):
+        o = keep[q]
         if lows[o] >= r_start + best:
             break
         ox, oy, oz = obstacles[o, 0], obstacles[o, 1], obstacles[o, 2]
         rad = rads[o]
-        lim = r_centre + best + rad
-        dx, dy, dz = ox - cx, oy - cy, oz - cz
-        if dx * dx + dy * dy + dz * dz >= lim * lim:
+        if not _within(spheres[n_blocks], ox, oy, oz, best + rad):
             continue
         for b in range(n_blocks):
-            lim = spheres[b, 3] + best + rad
-            dx, dy, dz = ox - spheres[b, 0], oy - spheres[b, 1], oz - spheres[b, 2]
-            if dx * dx + dy * dy + dz * dz >= lim * lim:
+            if not mask[q, b] or not _within(spheres[b], ox, oy, oz, best + rad):
                 continue
-            d2_min = math.inf
-            for k in range(b * _BLOCK, min(n, (b + 1) * _BLOCK)):
-                dx, dy, dz = path[k, 0] - ox, path[k, 1] - oy, path[k, 2] - oz
-                d2 = dx * dx + dy * dy + dz * dz
-                if d2 < d2_min:
-                    d2_min = d2
-            c = math.sqrt(d2_min) - rad  # sqrt and - are monotone: the block's smallest clearance
+            c = _obstacle_clearance(path, b * _BLOCK, min(n, (b + 1) * _BLOCK), ox, oy, oz, rad)
             if c < best:
                 best = c
                 if best < stop_below:
@@ -427,7 +513,7 @@ def _mover_track(dt, n_steps, movers_pos, movers_vel):
     return track
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _mover_clearance(path, track, R_uu):
     """min_k min_m |p_k - m(t_k)| - R_uu for the predicted mover positions ``track`` (``_mover_track``).
 
@@ -528,6 +614,26 @@ def _select(score, vs, ws):
 
 
 @numba.njit(cache=True)
+def _yaw_table(psi0, w_axis, dt, n_steps):
+    """(n_w, n_steps, 3): psi_k, cos psi_k, sin psi_k of the rollout of each w, stepped as ``integrate`` does.
+
+    The yaw sequence does not depend on v. The wrap chains of all w advance step by step together:
+    they are independent, so the CPU overlaps them.
+    """
+    yaw = np.empty((w_axis.size, n_steps, 3))
+    for j in range(w_axis.size):
+        yaw[j, 0, 0] = wrap(psi0 + w_axis[j] * dt)
+    for k in range(1, n_steps):
+        for j in range(w_axis.size):
+            yaw[j, k, 0] = wrap(yaw[j, k - 1, 0] + w_axis[j] * dt)
+    for j in range(w_axis.size):
+        for k in range(n_steps):
+            yaw[j, k, 1] = math.cos(yaw[j, k, 0])
+            yaw[j, k, 2] = math.sin(yaw[j, k, 0])
+    return yaw
+
+
+@numba.njit(cache=True)
 def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, obstacles, radii, r_uav,
                  a_max, v_max, w_max, D_cap, dist_cap, movers_pos, movers_vel, R_uu, goal_x, goal_y, la_x, la_y,
                  heading_from_current, lam, progress_reach, vel_target, rot_ref, alpha, kappa,
@@ -543,22 +649,18 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, o
     vs, ws = _window_grid(v_lo, v_hi, w_lo, w_hi, v_res, w_res)
     n_samples = vs.shape[0]
     x0, y0, z0, psi0 = state[0], state[1], state[2], state[3]
-    # The yaw sequence of a rollout depends on w only: one table of psi_k, cos psi_k, sin psi_k per w,
-    # applied exactly as ``integrate`` does.
-    yaw = np.empty((n_w, n_steps, 3))
-    for j in range(n_w):
-        psi = psi0
-        for k in range(n_steps):
-            psi = wrap(psi + w_axis[j] * dt)
-            yaw[j, k, 0] = psi
-            yaw[j, k, 1] = math.cos(psi)
-            yaw[j, k, 2] = math.sin(psi)
+    yaw = _yaw_table(psi0, w_axis, dt, n_steps)
     track = _mover_track(dt, n_steps, movers_pos, movers_vel)
-    spheres = np.empty(((n_steps + _BLOCK - 1) // _BLOCK, 4))
-    path = np.empty((n_steps, 4))
+    n_blocks = (n_steps + _BLOCK - 1) // _BLOCK
+    paths = np.empty((n_samples, n_steps, 3))
+    spheres = np.empty((n_samples, n_blocks + 1, 4))
+    reach = np.empty(n_samples)
+    for i in range(n_samples):
+        _rollout_table(x0, y0, z0, vs[i], vz, dt, yaw[i % n_w], paths[i])
+        reach[i] = _path_spheres(paths[i], x0, y0, z0, spheres[i])
     clearance = np.empty(n_samples)
     admissible = np.zeros(n_samples, dtype=np.bool_)
-    endpoint = np.empty((n_samples, 4))
+    endpoint = np.empty((n_samples, 3))
     alignment = np.empty(n_samples)
     heading = np.empty(n_samples)
     dist = np.empty(n_samples)
@@ -567,15 +669,18 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, o
     rho_d = math.hypot(goal_x - x0, goal_y - y0)
     bearing_now = math.atan2(goal_y - y0, goal_x - x0)
     # no rollout gets farther than the fastest one; beyond its reach plus the clearance cap nothing counts
-    reach = dt * n_steps * math.sqrt(v_hi * v_hi + vz * vz) + max(D_cap, v_hi * v_hi / (2.0 * a_max)) + r_uav
-    obstacles, rads, lows = _nearby(obstacles, radii, x0, y0, z0, reach, r_uav)
+    far = dt * n_steps * math.sqrt(v_hi * v_hi + vz * vz) + max(D_cap, v_hi * v_hi / (2.0 * a_max)) + r_uav
+    obstacles, rads, lows = _nearby(obstacles, radii, x0, y0, z0, far, r_uav)
+    d_brake = vs * vs / (2.0 * a_max)
+    caps = np.maximum(D_cap, d_brake)
+    stop_below = np.full(n_samples, -math.inf) if exact_clearance else d_brake
+    # every search starts at its cap or an attained value; one candidate list serves all rollouts
+    start = _search_starts(paths, spheres, obstacles, rads, caps, stop_below)
+    keep, mask = _candidates(obstacles, rads, lows, spheres, reach.max(), start.max())
     for i in range(n_samples):
-        v, w = vs[i], ws[i]
-        _rollout_table(x0, y0, z0, v, vz, dt, yaw[i % n_w], path)
-        d_brake = v * v / (2.0 * a_max)
-        c = _static_clearance(path, x0, y0, z0, obstacles, rads, lows, max(D_cap, d_brake),
-                              -math.inf if exact_clearance else d_brake, spheres)
-        ok = c > 0.0 and c >= d_brake
+        v, w, path = vs[i], ws[i], paths[i]
+        c = _static_clearance(path, spheres[i], reach[i], obstacles, rads, lows, keep, mask, start[i], stop_below[i])
+        ok = c > 0.0 and c >= d_brake[i]
         if (ok or exact_clearance) and movers_pos.shape[0] > 0:
             c_mover = _mover_clearance(path, track, R_uu)
             ok = ok and c_mover >= 0.0
@@ -583,8 +688,8 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, o
         clearance[i] = c
         dist[i] = min(c, dist_cap)
         admissible[i] = ok
-        ex, ey, psi_end = path[n_steps - 1, 0], path[n_steps - 1, 1], path[n_steps - 1, 3]
-        endpoint[i, :] = path[n_steps - 1, :]
+        ex, ey, psi_end = path[n_steps - 1, 0], path[n_steps - 1, 1], yaw[i % n_w, n_steps - 1, 0]
+        endpoint[i, :] = path[n_steps - 1]
         alignment[i] = _alignment(la_x - x0, la_y - y0, ex - x0, ey - y0, psi_end)
         bearing = bearing_now if heading_from_current else math.atan2(goal_y - ey, goal_x - ex)
         h = _heading(bearing, psi_end)
@@ -608,6 +713,53 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, v_res, w_res, vz, dt, n_steps, o
 
 
 # ----------------------------------------------------------------------------------- planner
+
+
+def _plan_arrays(state, goal, lookahead, obstacles, obstacle_radius, movers_pos, movers_vel, finite: bool):
+    """dwa_plan's array arguments as contiguous float64 of checked shapes; values checked too if ``finite``.
+
+    ``finite=False`` leaves the values to one ``_valid_values`` call, the cheap common case.
+    """
+    state = _array("state", state, "(7,) [x, y, z, psi, v, w, vz]", 1, (7,), finite)
+    goal_xy = _array("goal", goal, "(2,) or (3,)", 1, (2, 3), finite)
+    la_xy = goal_xy if lookahead is None else _array("lookahead", lookahead, "(2,) or (3,)", 1, (2, 3), finite)
+    obstacles = np.empty((0, 3)) if np.size(obstacles) == 0 else \
+        _array("obstacles", obstacles, "(M, 3)", 2, (3,), finite)
+    radii = np.full(obstacles.shape[0], _finite("obstacle_radius", np.asarray(obstacle_radius).item())) \
+        if np.ndim(obstacle_radius) == 0 else _array("obstacle_radius", obstacle_radius, "(M,)", 1, None, finite)
+    if radii.shape != (obstacles.shape[0],) or (finite and not (radii >= 0).all()):
+        raise ValueError(f"obstacle_radius: expected one radius >= 0 per obstacle ({obstacles.shape[0]}) or a "
+                         f"single number, got shape {radii.shape}")
+    if (movers_pos is None) != (movers_vel is None):
+        raise ValueError("movers_pos, movers_vel: pass both (K, 3) arrays or neither")
+    if movers_pos is None:
+        movers_pos = movers_vel = np.empty((0, 3))
+    else:
+        movers_pos = _array("movers_pos", movers_pos, "(K, 3)", 2, (3,), finite)
+        movers_vel = _array("movers_vel", movers_vel, "(K, 3)", 2, (3,), finite)
+        if movers_pos.shape != movers_vel.shape:
+            raise ValueError(f"movers_pos {movers_pos.shape} and movers_vel {movers_vel.shape}: expected equal shapes")
+    return state, goal_xy, la_xy, obstacles, radii, movers_pos, movers_vel
+
+
+@numba.njit(cache=True, inline="always")
+def _all_finite(arr):
+    """Whether every value of a contiguous array is finite; branch-free, so the loop vectorises."""
+    flat = arr.ravel()
+    ok = True
+    for i in range(flat.size):
+        ok &= abs(flat[i]) <= _FLOAT_MAX
+    return ok
+
+
+@numba.njit(cache=True)
+def _valid_values(state, goal, lookahead, obstacles, radii, movers_pos, movers_vel):
+    """Whether every value is finite and every radius >= 0 (``_plan_arrays``' value checks in one call)."""
+    ok = True
+    for r in radii:
+        ok &= r >= 0.0  # False for nan too
+    return (ok and _all_finite(state) and _all_finite(goal) and _all_finite(lookahead) and _all_finite(obstacles)
+            and _all_finite(movers_pos) and _all_finite(movers_vel))
 
 
 def _rotation_weight(cfg: DWAConfig, clearance_now: float, prev_alignment: float) -> float:
@@ -638,24 +790,17 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
     prev_alignment: c of the previous cycle's choice (E10 per_step, E11 alignment; None -> 1).
     If no sample is admissible, brakes: v = v_lo (= max(0, v0 - a_max dt) for v_min = 0), w = w0.
     """
-    state = _array("state", state, "(7,) [x, y, z, psi, v, w, vz]", 1, (7,))
-    goal_xy = _array("goal", goal, "(2,) or (3,)", 1, (2, 3))
-    la_xy = goal_xy if lookahead is None else _array("lookahead", lookahead, "(2,) or (3,)", 1, (2, 3))
-    obstacles = np.empty((0, 3)) if np.size(obstacles) == 0 else _array("obstacles", obstacles, "(M, 3)", 2, (3,))
-    radii = np.full(obstacles.shape[0], _finite("obstacle_radius", np.asarray(obstacle_radius).item())) \
-        if np.ndim(obstacle_radius) == 0 else _array("obstacle_radius", obstacle_radius, "(M,)", 1)
-    if radii.shape != (obstacles.shape[0],) or not (radii >= 0).all():
-        raise ValueError(f"obstacle_radius: expected one radius >= 0 per obstacle ({obstacles.shape[0]}) or a "
-                         f"single number, got shape {radii.shape}")
-    if (movers_pos is None) != (movers_vel is None):
-        raise ValueError("movers_pos, movers_vel: pass both (K, 3) arrays or neither")
-    if movers_pos is None:
-        movers_pos = movers_vel = np.empty((0, 3))
-    else:
-        movers_pos = _array("movers_pos", movers_pos, "(K, 3)", 2, (3,))
-        movers_vel = _array("movers_vel", movers_vel, "(K, 3)", 2, (3,))
-        if movers_pos.shape != movers_vel.shape:
-            raise ValueError(f"movers_pos {movers_pos.shape} and movers_vel {movers_vel.shape}: expected equal shapes")
+    try:
+        arrays = _plan_arrays(state, goal, lookahead, obstacles, obstacle_radius, movers_pos, movers_vel, False)
+        checked = _valid_values(*arrays)
+    except ValueError:
+        checked = False
+    if not checked:  # the full checks raise for the first bad argument, in argument order
+        arrays = _plan_arrays(state, goal, lookahead, obstacles, obstacle_radius, movers_pos, movers_vel, True)
+    state, goal_xy, la_xy, obstacles, radii, movers_pos, movers_vel = arrays
+    x, y, _, _, v0, w0, _ = state.tolist()  # Python floats: cheaper than numpy scalars in the glue below
+    goal_x, goal_y = goal_xy.tolist()[:2]
+    la_x, la_y = la_xy.tolist()[:2]
     vz_cmd = _finite("vz_cmd", vz_cmd)
     if math.isnan(clearance_now):
         raise ValueError("clearance_now=nan: expected a number (inf in open space)")
@@ -669,9 +814,9 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
     if n_steps < 1:
         raise ValueError(f"DWAConfig.T_p={cfg.T_p!r} is shorter than one step (UAVLimits.dt={limits.dt!r})")
 
-    v_lo, v_hi, w_lo, w_hi = _window_bounds(state[4], state[5], limits, v_cap)
+    v_lo, v_hi, w_lo, w_hi = _window_bounds(v0, w0, limits, v_cap)
     reach = limits.v_max * cfg.T_p
-    rho_d = math.hypot(goal_xy[0] - state[0], goal_xy[1] - state[1])
+    rho_d = math.hypot(goal_x - x, goal_y - y)
     lam = min(1.0, rho_d / (reach if cfg.R_sw is None else cfg.R_sw)) if cfg.use_goal_dist_correction else 1.0
     if v_ref is not None:
         vel_target = v_ref
@@ -691,18 +836,17 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
         return _plan_kernel(state, v_lo_, v_hi_, w_lo_, w_hi_, cfg.v_res, cfg.w_res, vz_cmd, limits.dt, n_steps,
                             obstacles, radii, limits.r_uav, limits.a_max, limits.v_max, limits.w_max, cfg.D_cap,
                             cfg.D_cap if cfg.dist_cap is None else cfg.dist_cap, movers_pos, movers_vel, cfg.R_uu,
-                            goal_xy[0], goal_xy[1], la_xy[0], la_xy[1],
-                            cfg.heading_ref == "current", lam, reach, vel_target,
-                            state[5] if cfg.rotation_mode == "delta" else 0.0, alpha, cfg.kappa, per_candidate,
+                            goal_x, goal_y, la_x, la_y, cfg.heading_ref == "current", lam, reach, vel_target,
+                            w0 if cfg.rotation_mode == "delta" else 0.0, alpha, cfg.kappa, per_candidate,
                             cfg.beta, cfg.gamma, _rotation_weight(cfg, clearance_now, prev_alignment),
                             cfg.norm == "minmax", exact_clearance)
 
     pick, vs, ws, score, clearance, admissible, endpoint, alignment = run(v_lo, v_hi, w_lo, w_hi, False)
-    candidates = DWACandidates(vs, ws, admissible, clearance, score, endpoint[:, :3])
+    candidates = DWACandidates(vs, ws, admissible, clearance, score, endpoint)
     if pick >= 0:
-        return DWAResult(float(vs[pick]), float(ws[pick]), True, int(admissible.sum()), float(score[pick]),
-                         endpoint[pick, :3].copy(), float(clearance[pick]), float(alignment[pick]), candidates)
-    brake_w = min(max(state[5], w_lo), w_hi)
+        return DWAResult(vs.item(pick), ws.item(pick), True, int(np.count_nonzero(admissible)), score.item(pick),
+                         endpoint[pick].copy(), clearance.item(pick), alignment.item(pick), candidates)
+    brake_w = min(max(w0, w_lo), w_hi)
     _, _, _, _, brake_clearance, _, brake_end, brake_alignment = run(v_lo, v_lo, brake_w, brake_w, True)
-    return DWAResult(v_lo, float(brake_w), False, 0, math.nan, brake_end[0, :3].copy(), float(brake_clearance[0]),
-                     float(brake_alignment[0]), candidates)
+    return DWAResult(v_lo, brake_w, False, 0, math.nan, brake_end[0].copy(), brake_clearance.item(0),
+                     brake_alignment.item(0), candidates)
