@@ -321,8 +321,7 @@ class FusionExpert(OnboardPolicy):
         emergency = False
         if cfg.use_vfh:
             if level == 0 and reach >= cfg.vfh.R_w:             # the same voxels, in the same order, as a query
-                near = _within(obstacles, pos, cfg.vfh.R_w)
-                centres, probs = obstacles[near], obstacle_probs[near]
+                centres, probs = _within(obstacles, obstacle_probs, pos, cfg.vfh.R_w)
             else:
                 centres, probs = view.occupancy.occupied_in_sphere(pos, cfg.vfh.R_w)
             gap_z = _gap_altitude(view, lookahead, z_slot, cfg)
@@ -359,14 +358,15 @@ class FusionExpert(OnboardPolicy):
         dwa_cfg = cfg.dwa
         if cfg.final_approach_free and self._final_approach(view, goal, obstacles, radius, cfg):
             dwa_cfg = replace(dwa_cfg, beta=0.0)
+        radii = np.full(len(obstacles), radius)
         if len(fence):
             obstacles = np.concatenate([obstacles, fence])
-        radii = np.concatenate([np.full(len(obstacles) - len(fence), radius), np.zeros(len(fence))])
+            radii = np.concatenate([radii, np.zeros(len(fence))])
+        alive_pos, alive_vel = movers_pos[view.neighbour_alive], movers_vel[view.neighbour_alive]
         def plan(vz):
             return dwa_plan(s, lim, dwa_cfg, heading_goal, obstacles, radii, vz_cmd=vz, lookahead=lookahead,
-                            clearance_now=clearance_now, movers_pos=movers_pos[view.neighbour_alive],
-                            movers_vel=movers_vel[view.neighbour_alive], v_ref=v_ref, v_cap=v_cap,
-                            prev_alignment=mem.prev_alignment)
+                            clearance_now=clearance_now, movers_pos=alive_pos, movers_vel=alive_vel, v_ref=v_ref,
+                            v_cap=v_cap, prev_alignment=mem.prev_alignment)
 
         res = plan(vz_cmd)
         if not res.admissible and vz_cmd != 0.0:
@@ -707,14 +707,21 @@ def _level_way_kernel(window_open, cell, target_azimuth, window):
 
 
 @numba.njit(cache=True)
-def _within(points, centre, radius):
-    """Mask of the ``points`` (M, 3) within ``radius`` of ``centre``."""
+def _within(points, values, centre, radius):
+    """The ``points`` (M, 3) within ``radius`` of ``centre`` and their ``values`` (M,), in their order."""
     r2 = radius * radius
-    out = np.empty(points.shape[0], dtype=np.bool_)
+    keep = np.empty(points.shape[0], dtype=np.int64)
+    n = 0
     for k in range(points.shape[0]):
         dx, dy, dz = points[k, 0] - centre[0], points[k, 1] - centre[1], points[k, 2] - centre[2]
-        out[k] = dx * dx + dy * dy + dz * dz <= r2
-    return out
+        if dx * dx + dy * dy + dz * dz <= r2:
+            keep[n] = k
+            n += 1
+    inside, inside_values = np.empty((n, 3)), np.empty(n)
+    for m in range(n):
+        inside[m] = points[keep[m]]
+        inside_values[m] = values[keep[m]]
+    return inside, inside_values
 
 
 @numba.njit(cache=True)
