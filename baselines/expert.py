@@ -649,10 +649,10 @@ def _columns_without_gap(occ_map, centres: np.ndarray, z_min: float, z_max: floa
     origin = occ_map.origin
     k_lo = max(0, int(math.ceil((z_min - origin[2]) / res - 0.5)))
     k_hi = min(occ_map.shape[2], int(math.floor((z_max - origin[2]) / res - 0.5)) + 1)
+    l_occ = np.float32(occ_map.cfg.logodds(occ_map.cfg.p_occ))        # the map's float32 occupancy threshold
     out = np.empty((len(centres), 2))
     n = _gapless_columns_kernel(occ_map.logodds, np.ascontiguousarray(centres, dtype=np.float64), origin, res,
-                                z_min - res, z_max + res, k_lo, k_hi, np.float32(occ_map.cfg.logodds(occ_map.cfg.p_occ)),
-                                gap, out)
+                                z_min - res, z_max + res, k_lo, k_hi, l_occ, gap, out)
     return out[:n]
 
 

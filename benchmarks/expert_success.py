@@ -12,13 +12,13 @@ from __future__ import annotations
 
 import argparse
 import time
-from concurrent.futures import ProcessPoolExecutor
+
+from uavform_env.parallel import imap_unordered
 
 SCENARIOS = ("forest", "corridor", "urban", "wall-gap", "random-3d", "classic-2d")
 
 
-def fly(job):
-    scenario, seed, n, max_steps, policy_name = job
+def fly(scenario: str, seed: int, n: int | None, max_steps: int, policy_name: str):
     from uavform_env.formation_v0 import parallel_env
     from uavform_env.policies import load_policy
     from uavform_env.rollout import run_episode
@@ -42,11 +42,10 @@ def main(argv=None) -> int:
     jobs = [(s, seed, a.n, a.max_steps, a.policy) for s in a.scenarios for seed in a.seeds]
     t0 = time.perf_counter()
     results = {}
-    with ProcessPoolExecutor(max_workers=a.workers) as pool:
-        for scenario, seed, ok, crash, secs in pool.map(fly, jobs):
-            results[scenario, seed] = (ok, crash)
-            print(f"  {scenario:<11} seed {seed}: {'SUCCESS' if ok else 'COLLISION' if crash else 'time-out'}"
-                  f" ({secs:.0f} s)", flush=True)
+    for scenario, seed, ok, crash, secs in imap_unordered(fly, jobs, a.workers):
+        results[scenario, seed] = (ok, crash)
+        print(f"  {scenario:<11} seed {seed}: {'SUCCESS' if ok else 'COLLISION' if crash else 'time-out'}"
+              f" ({secs:.0f} s)", flush=True)
     print(f"\n{a.policy}, {a.n or 'default'} UAVs, seeds {a.seeds}, max {a.max_steps} steps")
     print(f"{'scenario':<11} {'per seed':<{max(8, len(a.seeds))}} success collisions")
     tot_ok = tot_c = 0
