@@ -172,8 +172,8 @@ def _disc_offsets(radius: float, res: float) -> np.ndarray:
     """(K, 2) cell offsets (di, dj) with sqrt((di res)^2 + (dj res)^2) <= radius (1 + 1e-12)."""
     reach = int(math.floor(radius / res)) + 1
     di, dj = np.meshgrid(np.arange(-reach, reach + 1), np.arange(-reach, reach + 1), indexing="ij")
-    d = np.sqrt((di * res) ** 2 + (dj * res) ** 2)
-    offsets = np.column_stack([di[d <= radius * (1.0 + 1e-12)], dj[d <= radius * (1.0 + 1e-12)]])
+    inside = np.sqrt((di * res) ** 2 + (dj * res) ** 2) <= radius * (1.0 + 1e-12)
+    offsets = np.column_stack([di[inside], dj[inside]])
     offsets.flags.writeable = False
     return offsets
 

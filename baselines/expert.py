@@ -321,7 +321,7 @@ class FusionExpert(OnboardPolicy):
         emergency = False
         if cfg.use_vfh:
             if level == 0 and reach >= cfg.vfh.R_w:             # the same voxels, in the same order, as a query
-                centres, probs = _within(obstacles, obstacle_probs, pos, cfg.vfh.R_w)
+                centres, probs = _in_sphere(obstacles, obstacle_probs, pos, cfg.vfh.R_w)
             else:
                 centres, probs = view.occupancy.occupied_in_sphere(pos, cfg.vfh.R_w)
             gap_z = _gap_altitude(view, lookahead, z_slot, cfg)
@@ -377,8 +377,7 @@ class FusionExpert(OnboardPolicy):
         v_c, w_c = res.v, res.w
         if not res.admissible:
             mem.stuck_time += lim.dt
-            bearing = math.atan2(heading_goal[1] - pos[1], heading_goal[0] - pos[0])
-            w_c = _clamp(wrap(bearing - s[PSI]), -lim.w_max, lim.w_max)
+            w_c = _turn_toward(s, heading_goal - pos[:2], lim.w_max)
             if cfg.use_vfh and mem.stuck_time >= cfg.T_stuck and vfh_result is not None:
                 vz_cmd = _vertical_escape(vfh_result, lim)
         else:
@@ -389,12 +388,11 @@ class FusionExpert(OnboardPolicy):
         else:
             docking = (_leader_parked(view, cfg) and s[V] < cfg.leader_stopped_speed
                        and math.hypot(to_goal[0], to_goal[1]) >= view.config.formation.e_f / 2)
+        to_lookahead = lookahead - pos[:2]
         if docking and abs(_bearing_error(s, to_goal)) > cfg.dock_turn_angle:
-            v_c = 0.0                                           # turn in place toward a parked slot
-            w_c = _clamp(_bearing_error(s, to_goal), -lim.w_max, lim.w_max)
-        elif mem.on_path and abs(_bearing_error(s, lookahead - pos[:2])) > cfg.reverse_turn_angle:
-            v_c = 0.0                                           # the path doubles back: turn in place
-            w_c = _clamp(_bearing_error(s, lookahead - pos[:2]), -lim.w_max, lim.w_max)
+            v_c, w_c = 0.0, _turn_toward(s, to_goal, lim.w_max)           # turn in place toward a parked slot
+        elif mem.on_path and abs(_bearing_error(s, to_lookahead)) > cfg.reverse_turn_angle:
+            v_c, w_c = 0.0, _turn_toward(s, to_lookahead, lim.w_max)      # the path doubles back: turn in place
         vz_away = None
         if emergency and vfh_result is not None:
             r_e = cfg.vfh.resolve(lim, view.occupancy.resolution)[0]
@@ -707,7 +705,7 @@ def _level_way_kernel(window_open, cell, target_azimuth, window):
 
 
 @numba.njit(cache=True)
-def _within(points, values, centre, radius):
+def _in_sphere(points, values, centre, radius):
     """The ``points`` (M, 3) within ``radius`` of ``centre`` and their ``values`` (M,), in their order."""
     r2 = radius * radius
     keep = np.empty(points.shape[0], dtype=np.int64)
@@ -887,6 +885,11 @@ def _clamp(x: float, lo: float, hi: float) -> float:
 def _bearing_error(state, direction) -> float:
     """Signed angle (rad) from the UAV's heading to the horizontal ``direction``."""
     return wrap(math.atan2(direction[1], direction[0]) - state[PSI])
+
+
+def _turn_toward(state, direction, w_max: float) -> float:
+    """The yaw rate toward the horizontal ``direction``: its bearing error, limited to +/- w_max."""
+    return _clamp(_bearing_error(state, direction), -w_max, w_max)
 
 
 def _pursuit_cap(state, point, w_max: float, v_cap: float) -> float:

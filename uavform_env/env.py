@@ -27,7 +27,7 @@ from .onboard import OnboardView, PriorMap
 from .rewards import compute_rewards
 from .scenarios import Scenario, load_scenario, make_scenario, validate_scenario
 from .sensing import RangeSensor
-from .world import grid_frame
+from .world import _read_only, grid_frame
 
 INFO_KEYS = ("clearance", "separation", "formation_error", "target_distance", "goal_distance", "speed",
              "altitude", "crashed", "success", "step", "TimeLimit.truncated")
@@ -91,6 +91,7 @@ class FormationEnv(ParallelEnv):
         self.agents: list[str] = []
         self._episode_seeds: np.random.Generator | None = None
         self.scenario: Scenario | None = None
+        self._snapshot: SimpleNamespace | None = None            # see _onboard_snapshot
         self.world = None
         self._renderer = None
 
@@ -176,8 +177,7 @@ class FormationEnv(ParallelEnv):
             res = ep.prior_resolution
             origin_xy, shape = grid_frame(self.scenario.bounds_lo[:2], self.scenario.bounds_hi[:2], res)
             heights = np.zeros(shape, np.float32)
-        heights = np.array(heights, np.float32)
-        heights.flags.writeable = False
+        heights = _read_only(np.array(heights, np.float32))
         return PriorMap(np.asarray(origin_xy, float), float(res), heights, ep.prior_map)
 
     # ------------------------------------------------------------------ step
@@ -334,18 +334,17 @@ class FormationEnv(ParallelEnv):
     def _onboard_snapshot(self) -> SimpleNamespace:
         """Read-only copies shared by every agent's view of this step, made once per step (``step`` and
         ``reset`` replace ``self.broadcast``, which keys the snapshot)."""
-        snap = getattr(self, "_snapshot", None)
+        snap = self._snapshot
         if snap is None or snap.key is not self.broadcast:
             n = self.n_uavs
             others = np.array([[j for j in range(n) if j != i] for i in range(n)], dtype=np.int64).reshape(n, n - 1)
+            copy = _read_only_copy
             snap = SimpleNamespace(
-                key=self.broadcast, states=_read_only(self.states), broadcast=_read_only(self.broadcast),
-                slots=_read_only(self._broadcast_slots()), goal=_read_only(self.goal),
-                offsets=_read_only(self.offsets), others=_read_only(others),
-                neighbour_states=_read_only(self.broadcast[others]),
-                neighbour_alive=_read_only((self.active & self.present)[others]),
-                maps=[m.read_only() for m in self.maps], bounds_lo=_read_only(self.scenario.bounds_lo),
-                bounds_hi=_read_only(self.scenario.bounds_hi))
+                key=self.broadcast, states=copy(self.states), broadcast=copy(self.broadcast),
+                slots=copy(self._broadcast_slots()), goal=copy(self.goal), offsets=copy(self.offsets),
+                others=copy(others), neighbour_states=copy(self.broadcast[others]),
+                neighbour_alive=copy((self.active & self.present)[others]), maps=[m.read_only() for m in self.maps],
+                bounds_lo=copy(self.scenario.bounds_lo), bounds_hi=copy(self.scenario.bounds_hi))
             self._snapshot = snap
         return snap
 
@@ -379,8 +378,6 @@ class FormationEnv(ParallelEnv):
             self._renderer = None
 
 
-def _read_only(a) -> np.ndarray:
+def _read_only_copy(a) -> np.ndarray:
     """A read-only copy: views handed to policies must not alias the env's state."""
-    a = np.array(a)
-    a.flags.writeable = False
-    return a
+    return _read_only(np.array(a))
