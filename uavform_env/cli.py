@@ -1,7 +1,7 @@
 """The ``uavform`` command: fly one episode, list and export scenarios, and plug-in commands.
 
 Every bad flag or file gives one line on stderr naming it and what is allowed (exit status 2), before
-any work starts: argparse checks types and ranges (``_int_in``), ``_preflight`` the rest.
+any work starts: argparse checks types and ranges (``int_in``, ``number_in``), ``_preflight_fly`` the rest.
 
 Other packages add sub-commands through the entry-point group ``uavform.commands``: each entry is a
 function ``register(subparsers)`` that adds its parser and sets ``func`` (``training`` adds
@@ -42,7 +42,7 @@ STUCK_SECONDS = 30.0   # a time-out is "stuck" when the leader moved less than S
 STUCK_DISTANCE = 1.0
 
 
-def _int_in(lo: int, hi: int | None = None):
+def int_in(lo: int, hi: int | None = None):
     """An argparse type: an integer in [lo, hi]; argparse names the flag in its error."""
     def parse(text: str) -> int:
         try:
@@ -56,14 +56,22 @@ def _int_in(lo: int, hi: int | None = None):
     return parse
 
 
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not value > 0 or not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
-    return value
+def number_in(lo: float | None, hi: float | None = None, lo_open: bool = False):
+    """An argparse type: a finite number in [lo, hi] (or (lo, hi] with ``lo_open``); None = unbounded."""
+    left = "(" if lo_open else "["
+    allowed = (f"a number > {lo:g}" if lo_open else f"a number >= {lo:g}") if hi is None else \
+        f"a number in {left}{lo:g}, {hi:g}]"
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        below = lo is not None and (value <= lo if lo_open else value < lo)
+        if not math.isfinite(value) or below or (hi is not None and value > hi):
+            raise argparse.ArgumentTypeError(f"expected {allowed}, got {text!r}")
+        return value
+    return parse
 
 
 def _flag(flag: str, value, exc: Exception) -> ValueError:
@@ -294,6 +302,13 @@ def version_text() -> str:
     return f"uavform {__version__} (code {code_version()})"
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: the flag, what is wrong, and where to read the options (no usage dump)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
+
+
 class _VersionAction(argparse.Action):
     """--version: the package version and the code version (git commit when run from a checkout)."""
 
@@ -306,7 +321,7 @@ class _VersionAction(argparse.Action):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="uavform", description=DESCRIPTION)
+    parser = _Parser(prog="uavform", description=DESCRIPTION)
     parser.add_argument("--version", action=_VersionAction,
                         help="print the package version and the code version (git commit in a checkout) and exit")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -319,23 +334,23 @@ def build_parser() -> argparse.ArgumentParser:
     fly.add_argument("--policy", default="expert",
                      help=f"short name ({', '.join(available_policies())}), module:attr of a policy class, or a "
                           "checkpoint .zip (needs the train extra) (default: expert)")
-    fly.add_argument("--n-uavs", type=_int_in(1, MAX_UAVS), default=None, metavar="N",
+    fly.add_argument("--n-uavs", type=int_in(1, MAX_UAVS), default=None, metavar="N",
                      help=f"number of UAVs, 1-{MAX_UAVS}; uav_0 leads (default: the scenario's, 5; classic-2d 1)")
     fly.add_argument("--formation", choices=FORMATION_SHAPES, default=None,
                      help="formation shape (default: the scenario's, wedge)")
     fly.add_argument("--difficulty", default=None,
                      help="random-3d: easy | medium | hard (default medium); classic-2d: base | extended "
                           "(default base); other scenarios have none")
-    fly.add_argument("--seed", type=_int_in(0), default=0,
+    fly.add_argument("--seed", type=int_in(0), default=0,
                      help="episode seed, an integer >= 0: the obstacle layout and sensor noise (default: 0)")
-    fly.add_argument("--max-steps", type=_int_in(1), default=None, metavar="STEPS",
+    fly.add_argument("--max-steps", type=int_in(1), default=None, metavar="STEPS",
                      help=f"step limit of the episode, >= 1 (one step = {_DEFAULTS.uav.dt:g} s; "
                           f"default: {_DEFAULTS.episode.max_cycles})")
     fly.add_argument("--out", default="runs/demo", help="output folder, created if needed (default: runs/demo)")
     fly.add_argument("--format", choices=PICTURE_FORMATS, default="png",
                      help="file format of the trajectory picture (default: png)")
     fly.add_argument("--video", action="store_true", help="also write an animation, OUT/episode.gif")
-    fly.add_argument("--video-every", type=_int_in(1), default=5, metavar="K",
+    fly.add_argument("--video-every", type=int_in(1), default=5, metavar="K",
                      help="with --video, draw every K-th step, K >= 1 (default: 5)")
     fly.add_argument("--top-down", action="store_true", help="with --video, draw the animation from above")
     fly.add_argument("--quiet", action="store_true",
@@ -348,9 +363,9 @@ def build_parser() -> argparse.ArgumentParser:
                                      "'uavform fly --scenario FILE' and parallel_env(scenario=FILE) load.")
     scn.add_argument("--export", metavar="NAME", default=None,
                      help="registered scenario to export (one of the names listed without --export)")
-    scn.add_argument("--seed", type=_int_in(0), default=0,
+    scn.add_argument("--seed", type=int_in(0), default=0,
                      help="generator seed, an integer >= 0: which obstacle layout (default: 0)")
-    scn.add_argument("--n-uavs", type=_int_in(1, MAX_UAVS), default=None, metavar="N",
+    scn.add_argument("--n-uavs", type=int_in(1, MAX_UAVS), default=None, metavar="N",
                      help=f"number of UAVs, 1-{MAX_UAVS} (default: the scenario's)")
     scn.add_argument("--formation", choices=FORMATION_SHAPES, default=None,
                      help="formation shape (default: the scenario's, wedge)")
@@ -365,11 +380,11 @@ def build_parser() -> argparse.ArgumentParser:
     lb.add_argument("--policy", action="append", default=[],
                     help="short name, module:attr or checkpoint path; repeat for several policies")
     lb.add_argument("--out", default="results", help="results folder (default: results)")
-    lb.add_argument("--workers", type=_int_in(1), default=1, help="parallel episodes (default: 1, in this process)")
+    lb.add_argument("--workers", type=int_in(1), default=1, help="parallel episodes (default: 1, in this process)")
     lb.add_argument("--backend", choices=["process", "ray"], default="process",
                     help="process pool (default) or Ray tasks (pip install 'uavform[ray]')")
     lb.add_argument("--resume", action="store_true", help="continue a results folder, skipping finished episodes")
-    lb.add_argument("--time-limit", type=_positive_float, default=900.0,
+    lb.add_argument("--time-limit", type=number_in(0.0, None, lo_open=True), default=900.0,
                     help="wall-clock seconds per episode before it is recorded as failed (default: 900)")
     lb.add_argument("--show", metavar="RESULTS_DIR", default=None, help="print the table of a results folder and exit")
     lb.add_argument("--quiet", action="store_true", help="no progress bar")
