@@ -411,13 +411,13 @@ def _formation_panel(ax, t: np.ndarray, ferr: np.ndarray, colours: list[str], e_
     ax.set_ylim(0.0, max(float(worst.max()) * 1.08, FAR_OFF_SLOT_M * 1.2))
 
 
-def plot_episode(env, path, title: str | None = None) -> None:
+def plot_episode(env, path, title: str | None = None) -> Figure:
     """The trajectory picture of a finished (or running) episode.
 
     3D view (trajectories only), top view with formation snapshots (leader->follower links every
     ``SNAPSHOT_PERIOD_S`` seconds), the altitude profile and each follower's formation error over time.
     The format follows the suffix of ``path`` (``uavform fly --format png|svg|pdf``); the file is
-    written atomically.
+    written atomically. Returns the figure (axes: 3D, top view, altitude, formation error, colour key).
     """
     path = Path(path)
     fmt = path.suffix.lower().lstrip(".")
@@ -493,6 +493,7 @@ def plot_episode(env, path, title: str | None = None) -> None:
     buf = io.BytesIO()
     fig.savefig(buf, format=fmt)
     atomic_write_bytes(path, buf.getvalue())
+    return fig
 
 
 def _default_title(env, crashed_final: np.ndarray) -> str:
