@@ -281,3 +281,17 @@ def test_the_published_checkpoint_still_loads_and_flies():
     assert read_meta(published)["train_config"]["scenario"] == "forest"
     metrics = run_episode(parallel_env(**small_env_kwargs(n_uavs=2, max_cycles=10)), policy, seed=0)
     assert metrics["collision"] == 0.0
+
+
+def test_learning_curve_leaves_out_the_training_panel_until_an_episode_finished(tmp_path):
+    """A short run may finish no training episode (SB3 logs no ep_rew_mean): no empty first panel then."""
+    import matplotlib.image as mpimg
+
+    from training.train import EVAL_COLUMNS, plot_learning_curve
+
+    (tmp_path / "evaluations.csv").write_text(",".join(EVAL_COLUMNS) + "\n0,1.0,0.5,0.0,2.0,90.0,1\n")
+    (tmp_path / "logs" / "segment-0").mkdir(parents=True)
+    (tmp_path / "logs" / "segment-0" / "progress.csv").write_text("time/total_timesteps,rollout/ep_rew_mean\n80,\n")
+    assert mpimg.imread(plot_learning_curve(tmp_path)).shape[1] == 9 * 110            # two panels
+    (tmp_path / "logs" / "segment-0" / "progress.csv").write_text("time/total_timesteps,rollout/ep_rew_mean\n80,-1\n")
+    assert mpimg.imread(plot_learning_curve(tmp_path)).shape[1] == 13 * 110           # three panels
