@@ -151,7 +151,7 @@ def test_quiet_prints_one_outcome_line_and_a_single_uav_has_no_formation_metrics
     assert fly(tmp_path, "--policy", "hover", "--n-uavs", "1", "--max-steps", "5", "--quiet") == 0
     out = capsys.readouterr().out
     assert out.count("\n") == 1 and out.startswith("TIME-OUT: hover on forest, 1 UAV (wedge), seed 0, 5 steps")
-    assert "nan" not in out and "the leader ended" in out
+    assert "nan" not in out and out.rstrip().endswith("from the goal: the step limit (5 steps) ran out")
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["outcome"] == "time-out" and summary["code_version"] == code_version()
     assert summary["units"]["goal_distance"] == "m" and summary["units"]["flight_time"] == "s"
@@ -230,3 +230,54 @@ def test_the_compile_notice_is_printed_once_while_kernels_are_cold(tmp_path, mon
     nu_kernels.twice.overloads.clear()                           # a new process: only the disk cache is left
     assert cold_modules() == []
     monkeypatch.delitem(sys.modules, "nu_kernels")
+
+
+# ----------------------------------------------------------------------------- why a flight ended
+def _ended(positions, clearance=None, crashed=None, ferr=None, success=False, max_cycles=1000):
+    """A stand-in for a finished env: the attributes flight_outcome reads, goal at (40, 0, 3)."""
+    from types import SimpleNamespace
+
+    from uavform_env.config import EnvConfig
+
+    pos = np.asarray(positions, dtype=float)
+    steps, n = pos.shape[:2]
+    history = {"positions": list(pos),
+               "clearance": list(np.full((steps, n), 5.0) if clearance is None else clearance),
+               "crashed": list(np.zeros((steps, n), bool) if crashed is None else crashed),
+               "formation_error": list(np.zeros((steps, n)) if ferr is None else ferr)}
+    scenario = SimpleNamespace(bounds_lo=(0.0, -10.0, 0.0), bounds_hi=(50.0, 10.0, 10.0))
+    return SimpleNamespace(config=EnvConfig(), history=history, goal=np.array([40.0, 0.0, 3.0]), success=success,
+                           scenario=scenario, step_count=steps - 1, max_cycles=max_cycles)
+
+
+def test_flight_outcome_names_the_reason():
+    from uavform_env.cli import flight_outcome
+
+    line = np.linspace([0.0, 0.0, 3.0], [39.9, 0.0, 3.0], 400)[:, None, :]                  # one UAV, 399 steps
+    assert flight_outcome(_ended(line, success=True))["outcome"] == "success"
+    out = flight_outcome(_ended(line, max_cycles=399))
+    assert out == {"outcome": "time-out", "reason": "the step limit (399 steps) ran out",
+                   "goal_distance": pytest.approx(0.1)}
+    parked = np.concatenate([line, np.repeat(line[-1:], 400, axis=0)])                       # then 40 s still
+    parked[-1, 0, 0] = 20.0
+    parked[-301:, 0, 0] = 20.0
+    assert flight_outcome(_ended(parked, max_cycles=799))["reason"] == "stuck: the leader moved 0.00 m in the last 30 s"
+
+    pair = np.stack([line[:, 0], line[:, 0] + [0.0, 2.0, 0.0]], axis=1)                      # leader + follower 1
+    crashed = np.zeros((400, 2), bool)
+    crashed[250:, 1] = True
+    clearance = np.full((400, 2), 3.0)
+    clearance[250, 1] = -0.1
+    assert flight_outcome(_ended(pair, clearance, crashed))["reason"] == \
+        "uav_1 (follower 1) crashed into an obstacle at step 250 (t = 25.0 s)"
+    pair[250:, 1] = pair[250:, 0] + [0.2, 0.0, 0.0]
+    assert flight_outcome(_ended(pair, None, crashed))["reason"].startswith("uav_1 (follower 1) crashed into uav_0 "
+                                                                            "(leader) at step 250")
+    pair[250:, 1] = [20.0, -11.0, 3.0]
+    assert "crashed into the edge of the world (left its x/y bounds)" in flight_outcome(_ended(pair, None, crashed))[
+        "reason"]
+    ferr = np.zeros((400, 2))
+    ferr[-1, 1] = 3.5
+    blocked = flight_outcome(_ended(np.stack([line[:, 0]] * 2, axis=1), ferr=ferr, max_cycles=399))
+    assert blocked["reason"] == "the leader reached the goal but follower 1 ended 3.5 m from its slot (e_f = 0.5 m): " \
+                                "its slot may be blocked"

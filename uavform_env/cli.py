@@ -118,12 +118,13 @@ def flight_outcome(env) -> dict:
         step = int(np.argmax(crashed.any(axis=1)))
         i = int(np.flatnonzero(crashed[step])[0])
         p = pos[step]
-        others = np.delete(np.linalg.norm(p - p[i], axis=1), i)
+        gaps = np.linalg.norm(p - p[i], axis=1)
+        gaps[i] = np.inf
+        j = int(np.argmin(gaps))
         lo, hi = np.asarray(env.scenario.bounds_lo), np.asarray(env.scenario.bounds_hi)
         if clearance[step, i] < 0:
             what = "an obstacle"
-        elif others.size and others.min() < 2 * cfg.uav.r_uav:
-            j = int(np.argmin(np.linalg.norm(p - p[i], axis=1) + np.eye(len(p))[i] * np.inf))
+        elif gaps[j] < 2 * cfg.uav.r_uav:
             what = f"uav_{j} ({names[j]})"
         elif np.any((p[i, :2] < lo[:2]) | (p[i, :2] > hi[:2])):
             what = "the edge of the world (left its x/y bounds)"
@@ -132,18 +133,17 @@ def flight_outcome(env) -> dict:
         return {"outcome": "crash", "reason": f"uav_{i} ({names[i]}) crashed into {what} at step {step} "
                 f"(t = {step * dt:.1f} s)", "goal_distance": goal_distance}
     if env.step_count >= env.max_cycles:
-        window = min(len(pos) - 1, max(1, round(STUCK_SECONDS / dt)))
-        moved = float(np.linalg.norm(pos[-1, 0] - pos[-1 - window, 0]))
+        window = max(1, round(STUCK_SECONDS / dt))
+        moved = float(np.linalg.norm(pos[-1, 0] - pos[-1 - window, 0])) if len(pos) > window else math.inf
         ferr = np.asarray(env.history["formation_error"], dtype=np.float64)[-1]
         if goal_distance < cfg.episode.r_goal and len(ferr) > 1:
             k = int(np.argmax(ferr[1:])) + 1
             reason = (f"the leader reached the goal but {names[k]} ended {ferr[k]:.1f} m from its slot "
                       f"(e_f = {cfg.formation.e_f:g} m): its slot may be blocked")
         elif moved < STUCK_DISTANCE:
-            reason = (f"stuck: the leader moved {moved:.2f} m in the last {window * dt:.0f} s and ended "
-                      f"{goal_distance:.1f} m from the goal")
+            reason = f"stuck: the leader moved {moved:.2f} m in the last {STUCK_SECONDS:g} s"
         else:
-            reason = f"the step limit ({env.max_cycles}) ran out {goal_distance:.1f} m from the goal"
+            reason = f"the step limit ({env.max_cycles} steps) ran out"
         return {"outcome": "time-out", "reason": reason, "goal_distance": goal_distance}
     return {"outcome": "ended", "reason": "no UAV could fly on", "goal_distance": goal_distance}
 
