@@ -188,6 +188,9 @@ _KEY_NOTES = {
 
 
 def _toml_value(value) -> str:
+    """One TOML value on one line (tomli_w's exact number format; its arrays would span several lines)."""
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
     return tomli_w.dumps({"v": value})[len("v = "):].rstrip("\n")
 
 
