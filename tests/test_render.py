@@ -44,7 +44,8 @@ def stand_in_env(n=3, obstacles=FOREST):
     env = SimpleNamespace(world=SimpleNamespace(**obstacles), scenario=scenario, config=EnvConfig(), offsets=offsets,
                           goal=np.array(mission.goal), n_uavs=n, states=states, crashed=np.zeros(n, bool),
                           step_count=0, success=False, metadata={"render_fps": 10})
-    env.history = {"positions": [states[:, :3].copy()], "crashed": [env.crashed.copy()]}
+    env.history = {"positions": [states[:, :3].copy()], "crashed": [env.crashed.copy()],
+                   "formation_error": [np.zeros(n)]}
     return env
 
 
@@ -55,6 +56,7 @@ def advance(env, steps=10, dx=0.5):
         env.step_count += 1
         env.history["positions"].append(env.states[:, :3].copy())
         env.history["crashed"].append(env.crashed.copy())
+        env.history["formation_error"].append(0.1 * env.step_count * (np.arange(env.n_uavs) > 0))  # 0.1 m per step
 
 
 def pixel_of(renderer, frame, point):
@@ -192,10 +194,26 @@ def test_plot_episode_writes_a_png_atomically(tmp_path, n):
     env.crashed[-1] = True
     advance(env, 60)
     path = tmp_path / "sub" / "trajectory.png"
-    plot_episode(env, path, title="a title")
+    fig = plot_episode(env, path, title="a title")
     image = mpimg.imread(path)
-    assert image.shape == (950, 1600, 4) and image[..., :3].std() > 0.05
+    assert image.shape == (1150, 1600, 4) and image[..., :3].std() > 0.05
     assert os.listdir(path.parent) == ["trajectory.png"]          # no temporary file left behind
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert labels[:n] == ["leader (uav_0)"] + [f"follower {k}" for k in range(1, n)]
+    assert fig.axes[0].get_zlabel() == "z [m]"
+    texts = [t.get_text() for t in fig.axes[3].texts]
+    if n == 1:
+        assert "a single UAV: no formation" in texts
+    else:   # 120 steps + reset; errors 0.1 m per step: > 0.5 m from step 6, > 5 m from step 51 (of 121)
+        assert f"some follower > 0.5 m (e_f) off its slot in {115 / 121:.0%} of steps, > 5 m in {70 / 121:.0%}" in texts
+
+
+@pytest.mark.parametrize("fmt, magic", [("svg", b"<?xml"), ("pdf", b"%PDF")])
+def test_plot_episode_writes_vector_formats(tmp_path, fmt, magic):
+    env = stand_in_env(n=3)
+    advance(env, 20)
+    plot_episode(env, tmp_path / f"trajectory.{fmt}")
+    assert (tmp_path / f"trajectory.{fmt}").read_bytes().startswith(magic)
 
 
 def test_plot_episode_rejects_bad_paths_and_unreset_envs(tmp_path):

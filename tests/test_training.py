@@ -155,8 +155,21 @@ def test_invalid_hyperparameters_are_rejected_before_training(tmp_path):
             TrainConfig(**{**TINY, **bad})
     from uavform_env.cli import main
 
-    assert main(["train", "--out", str(tmp_path / "run"), "--learning-rate", "-1"]) == 2
+    with pytest.raises(SystemExit) as exit_:                  # argparse checks the bound and names the flag
+        main(["train", "--out", str(tmp_path / "run"), "--learning-rate", "-1"])
+    assert exit_.value.code == 2
+    assert main(["train", "--out", str(tmp_path / "run"), "--batch-size", "7"]) == 2   # TrainConfig's check
     assert not (tmp_path / "run").exists()
+
+
+def test_batch_size_0_splits_every_rollout_into_equal_minibatches():
+    for n_uavs, n_envs, n_steps in ((5, 2, 256), (3, 2, 256), (7, 1, 100), (1, 1, 2)):
+        cfg = TrainConfig(n_uavs=n_uavs, n_envs=n_envs, n_steps=n_steps, timesteps=1000)
+        rollout = n_steps * n_envs * n_uavs
+        assert cfg.rollout_size() == rollout and rollout % cfg.batch_size == 0
+        assert cfg.batch_size <= max(2, rollout // 4)
+        assert cfg.total_timesteps() % rollout == 0 and 0 <= cfg.total_timesteps() - 1000 < rollout
+    assert TrainConfig().batch_size == 640                    # the documented runs' value at N = 5, 2 copies
 
 
 @pytest.fixture(scope="module")
@@ -268,3 +281,17 @@ def test_the_published_checkpoint_still_loads_and_flies():
     assert read_meta(published)["train_config"]["scenario"] == "forest"
     metrics = run_episode(parallel_env(**small_env_kwargs(n_uavs=2, max_cycles=10)), policy, seed=0)
     assert metrics["collision"] == 0.0
+
+
+def test_learning_curve_leaves_out_the_training_panel_until_an_episode_finished(tmp_path):
+    """A short run may finish no training episode (SB3 logs no ep_rew_mean): no empty first panel then."""
+    import matplotlib.image as mpimg
+
+    from training.train import EVAL_COLUMNS, plot_learning_curve
+
+    (tmp_path / "evaluations.csv").write_text(",".join(EVAL_COLUMNS) + "\n0,1.0,0.5,0.0,2.0,90.0,1\n")
+    (tmp_path / "logs" / "segment-0").mkdir(parents=True)
+    (tmp_path / "logs" / "segment-0" / "progress.csv").write_text("time/total_timesteps,rollout/ep_rew_mean\n80,\n")
+    assert mpimg.imread(plot_learning_curve(tmp_path)).shape[1] == 9 * 110            # two panels
+    (tmp_path / "logs" / "segment-0" / "progress.csv").write_text("time/total_timesteps,rollout/ep_rew_mean\n80,-1\n")
+    assert mpimg.imread(plot_learning_curve(tmp_path)).shape[1] == 13 * 110           # three panels

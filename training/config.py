@@ -4,10 +4,21 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from uavform_env.cli import MAX_UAVS
 from uavform_env.config import _check_choice, _check_int, _check_range, _Config
 from uavform_env.scenarios import list_scenarios
 
 from .residual import ResidualConfig
+
+
+# The bounds of the numeric fields, stated once: __post_init__ checks them and ``uavform train --help`` shows them.
+# Integers: (lo, hi); numbers: (lo, hi, lo_open). None = unbounded.
+INT_BOUNDS = {"n_uavs": (1, MAX_UAVS), "max_cycles": (10, None), "timesteps": (1, None), "n_envs": (1, 64),
+              "n_steps": (2, None), "batch_size": (0, None), "n_epochs": (1, None), "seed": (0, 2**31 - 1),
+              "eval_every": (1, None)}
+FLOAT_BOUNDS = {"learning_rate": (0.0, 1.0, True), "gamma": (0.0, 1.0, True), "gae_lambda": (0.0, 1.0, False),
+                "clip_range": (0.0, 1.0, True), "ent_coef": (0.0, 1.0, False), "log_std_init": (-5.0, 2.0, False)}
+MINIBATCHES = 4          # batch_size 0 (the default) splits each rollout into this many equal minibatches
 
 
 @dataclass(frozen=True)
@@ -15,11 +26,15 @@ class TrainConfig(_Config):
     """Everything a training run depends on; checked before any training starts.
 
     scenario, n_uavs, max_cycles   the training (and evaluation) missions
-    timesteps                      agent-steps in total (each UAV-step is one sample of the shared policy)
+    timesteps                      agent-steps in total (each UAV-step is one sample of the shared policy);
+                                   PPO trains on whole rollouts, so the run stops at the first multiple of the
+                                   rollout size (``rollout_size()``) at or above it: ``total_timesteps()``
     n_envs                         env copies, each in its own process when > 1
     n_steps, batch_size, n_epochs, learning_rate, gamma, gae_lambda, clip_range, ent_coef, log_std_init,
     net_arch                       PPO's hyperparameters (n_steps per row: a rollout holds
-                                   n_steps * n_envs * n_uavs samples)
+                                   n_steps * n_envs * n_uavs samples). batch_size 0 (the default) becomes
+                                   rollout / MINIBATCHES (the largest divisor of the rollout up to that), so
+                                   minibatches are equal at every N; a given batch_size must divide the rollout
     max_factor, reward             the residual bound and the reward mode (ResidualConfig)
     seed                           seeds PPO, the network and the training episodes (seed, seed + 1, ...)
     zero_init                      start from the expert exactly: the action layer's weights and bias are zero,
@@ -36,7 +51,7 @@ class TrainConfig(_Config):
     timesteps: int = 200_000
     n_envs: int = 2
     n_steps: int = 256
-    batch_size: int = 640
+    batch_size: int = 0
     n_epochs: int = 5
     learning_rate: float = 3e-4
     gamma: float = 0.99
@@ -55,33 +70,34 @@ class TrainConfig(_Config):
     def __post_init__(self):
         name = "TrainConfig"
         _check_choice(name, "scenario", self.scenario, tuple(list_scenarios()))
-        _check_int(name, "n_uavs", self.n_uavs, 1, 20)
-        _check_int(name, "max_cycles", self.max_cycles, 10)
-        _check_int(name, "timesteps", self.timesteps, 1)
-        _check_int(name, "n_envs", self.n_envs, 1, 64)
-        _check_int(name, "n_steps", self.n_steps, 2)
-        _check_int(name, "batch_size", self.batch_size, 2)
-        _check_int(name, "n_epochs", self.n_epochs, 1)
-        _check_range(name, "learning_rate", self.learning_rate, 0.0, 1.0, lo_open=True)
-        _check_range(name, "gamma", self.gamma, 0.0, 1.0, lo_open=True)
-        _check_range(name, "gae_lambda", self.gae_lambda, 0.0, 1.0)
-        _check_range(name, "clip_range", self.clip_range, 0.0, 1.0, lo_open=True)
-        _check_range(name, "ent_coef", self.ent_coef, 0.0, 1.0)
-        _check_range(name, "log_std_init", self.log_std_init, -5.0, 2.0)
+        for field, (lo, hi) in INT_BOUNDS.items():
+            _check_int(name, field, getattr(self, field), lo, hi)
+        for field, (lo, hi, lo_open) in FLOAT_BOUNDS.items():
+            _check_range(name, field, getattr(self, field), lo, hi, lo_open=lo_open)
         if not self.net_arch or not all(isinstance(n, int) and not isinstance(n, bool) and n > 0 for n in self.net_arch):
             raise ValueError(f"{name}.net_arch={self.net_arch!r}: expected a non-empty list of positive layer sizes")
         self.residual()
         if not isinstance(self.zero_init, bool):
             raise ValueError(f"{name}.zero_init={self.zero_init!r}: expected true or false")
-        _check_int(name, "seed", self.seed, 0, 2**31 - 1)
-        _check_int(name, "eval_every", self.eval_every, 1)
         if not self.eval_seeds or not all(isinstance(s, int) and 0 <= s < self.seed for s in self.eval_seeds):
             raise ValueError(f"{name}.eval_seeds={self.eval_seeds!r}: expected a non-empty list of seeds in "
                              f"[0, seed={self.seed}), held out from the training episodes")
-        rollout = self.n_steps * self.n_envs * self.n_uavs
-        if self.batch_size > rollout:
-            raise ValueError(f"{name}.batch_size={self.batch_size} is larger than a rollout of n_steps * n_envs * "
-                             f"n_uavs = {rollout} samples")
+        rollout = self.rollout_size()
+        if self.batch_size == 0:
+            object.__setattr__(self, "batch_size", next((d for d in range(rollout // MINIBATCHES, 1, -1)
+                                                         if rollout % d == 0), rollout))
+        elif rollout % self.batch_size:
+            raise ValueError(f"{name}.batch_size={self.batch_size} does not divide a rollout of n_steps * n_envs * "
+                             f"n_uavs = {rollout} samples (the last minibatch would be cut short); give a divisor, "
+                             "or 0 for a quarter of the rollout")
+
+    def rollout_size(self) -> int:
+        """Samples per PPO rollout: n_steps per row, one row per UAV of every env copy."""
+        return self.n_steps * self.n_envs * self.n_uavs
+
+    def total_timesteps(self) -> int:
+        """The agent-steps the run will really train: ``timesteps`` rounded up to whole rollouts."""
+        return -(-self.timesteps // self.rollout_size()) * self.rollout_size()
 
     def residual(self) -> ResidualConfig:
         return ResidualConfig(max_factor=self.max_factor, reward=self.reward)

@@ -144,10 +144,8 @@ class _EvalCheckpoints(BaseCallback):
     def _on_training_start(self) -> None:
         from tqdm import tqdm
 
-        rollout = self.model.n_steps * self.training_env.num_envs     # SB3 stops after whole rollouts
-        total = -(-self.cfg.timesteps // rollout) * rollout
-        self.bar = tqdm(total=total, initial=self.state["timesteps"], unit="step", desc="training",
-                        disable=not self.show_progress, dynamic_ncols=True)
+        self.bar = tqdm(total=self.cfg.total_timesteps(), initial=self.state["timesteps"], unit="step",
+                        desc="training", disable=not self.show_progress, dynamic_ncols=True)
         if self.state["best"] is None:
             self.checkpoint(self.model)               # the starting point is the reference to beat
 
@@ -174,7 +172,11 @@ class _EvalCheckpoints(BaseCallback):
         if self.state["best"] is not None and self.state["timesteps"] == model.num_timesteps:
             return                                         # nothing new since the last one
         meta = self._meta(model)
+        if self.bar is not None:                           # the evaluation takes a while: say so, not a stall
+            self.bar.set_description(f"evaluating on {len(self.cfg.eval_seeds)} held-out seeds")
         metrics = evaluate(ResidualPolicy(model, meta, name="training"), self.cfg)
+        if self.bar is not None:
+            self.bar.set_description("training", refresh=False)
         key = list(ranking_key(metrics))
         best = self.state["best"] is None or key > self.state["best"]["key"]
         if best:
@@ -216,11 +218,13 @@ def plot_learning_curve(out: str | os.PathLike) -> Path:
                     train_x.append(float(row["time/total_timesteps"]))
                     train_y.append(float(row["rollout/ep_rew_mean"]))
     evals = read_evaluations(out) if (out / "evaluations.csv").exists() else []
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.6))
-    axes[0].plot(train_x, train_y, color="tab:blue")
-    axes[0].set(title="training return per UAV-episode", xlabel="agent-steps")
-    for ax, metric, label in ((axes[1], "success", "held-out success rate"),
-                              (axes[2], "formation_error_rms", "held-out formation error RMS (m)")):
+    # The training-return panel only when some training episode has finished (a short run may have none).
+    fig, axes = plt.subplots(1, 3 if train_x else 2, figsize=(13 if train_x else 9, 3.6))
+    if train_x:
+        axes[0].plot(train_x, train_y, color="tab:blue")
+        axes[0].set(title="training return per UAV-episode", xlabel="agent-steps")
+    for ax, metric, label in ((axes[-2], "success", "held-out success rate"),
+                              (axes[-1], "formation_error_rms", "held-out formation error RMS (m)")):
         xs = [e["timesteps"] for e in evals]
         ax.plot(xs, [e[metric] for e in evals], "o-", color="tab:green")
         bx = [e["timesteps"] for e in evals if e["best"]]

@@ -1,5 +1,8 @@
 """The ``uavform`` command: fly one episode, list and export scenarios, and plug-in commands.
 
+Every bad flag or file gives one line on stderr naming it and what is allowed (exit status 2), before
+any work starts: argparse checks types and ranges (``int_in``, ``number_in``), ``_preflight_fly`` the rest.
+
 Other packages add sub-commands through the entry-point group ``uavform.commands``: each entry is a
 function ``register(subparsers)`` that adds its parser and sets ``func`` (``training`` adds
 ``train``), so this module never imports them.
@@ -8,72 +11,257 @@ function ``register(subparsers)`` that adds its parser and sets ``func`` (``trai
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from importlib.metadata import entry_points
 from pathlib import Path
 
+import numpy as np
+
+from .config import FORMATION_SHAPES, EnvConfig
+from .policies import available_policies
+
 COMMAND_GROUP = "uavform.commands"
+_DEFAULTS = EnvConfig()
+DESCRIPTION = ("uavform: fly multi-UAV formations through 3D obstacle fields, export scenarios, run the leaderboard "
+               "(plug-ins add train and reproduce)")
+# Each UAV keeps its own occupancy map of the whole world and the generated fields widen with the formation,
+# so memory grows faster than linearly with N; 20 is the size the benchmarks and training cover.
+MAX_UAVS = 20
+PICTURE_FORMATS = ("png", "svg", "pdf")
+# Optional dependencies by import name -> the extra of pyproject.toml that installs them.
+EXTRAS = {"torch": "train", "stable_baselines3": "train", "tensorboard": "train", "ray": "ray",
+          "octomap": "octomap", "imageio": "viz", "av": "viz", "supersuit": "interop", "torchrl": "interop",
+          "tianshou": "interop"}
+# Units of the summary's metrics (summary.json "units" and the printed table); counts and flags have none.
+METRIC_UNITS = {"flight_time": "s", "path_length_leader": "m", "path_length_mean": "m", "min_clearance": "m",
+                "min_separation": "m", "formation_error_rms": "m", "formation_error_max": "m", "time_to_reform": "s",
+                "total_turning": "rad", "total_turning_mean": "rad", "altitude_deviation_max": "m",
+                "planning_ms_median": "ms", "planning_ms_p95": "ms", "goal_distance": "m"}
+STUCK_SECONDS = 30.0   # a time-out is "stuck" when the leader moved less than STUCK_DISTANCE in this last stretch
+STUCK_DISTANCE = 1.0
+
+
+def int_in(lo: int, hi: int | None = None):
+    """An argparse type: an integer in [lo, hi]; argparse names the flag in its error."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < lo or (hi is not None and value > hi):
+            allowed = f"an integer >= {lo}" if hi is None else f"an integer in [{lo}, {hi}]"
+            raise argparse.ArgumentTypeError(f"expected {allowed}, got {text!r}")
+        return value
+    return parse
+
+
+def number_in(lo: float | None, hi: float | None = None, lo_open: bool = False):
+    """An argparse type: a finite number in [lo, hi] (or (lo, hi] with ``lo_open``); None = unbounded."""
+    left = "(" if lo_open else "["
+    allowed = (f"a number > {lo:g}" if lo_open else f"a number >= {lo:g}") if hi is None else \
+        f"a number in {left}{lo:g}, {hi:g}]"
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        below = lo is not None and (value <= lo if lo_open else value < lo)
+        if not math.isfinite(value) or below or (hi is not None and value > hi):
+            raise argparse.ArgumentTypeError(f"expected {allowed}, got {text!r}")
+        return value
+    return parse
+
+
+def _flag(flag: str, value, exc: Exception) -> ValueError:
+    """A ValueError naming the flag and its value, keeping the reason."""
+    return ValueError(f"{flag} {value}: {exc}")
+
+
+def _missing_extra(exc: ImportError, what: str) -> ValueError:
+    """The pip command that installs what ``what`` needs (a missing optional dependency)."""
+    module = (getattr(exc, "name", None) or "").partition(".")[0]
+    extra = EXTRAS.get(module)
+    if extra is None:
+        return ValueError(f"{what}: {exc}")
+    return ValueError(f"{what} needs {module}, from the optional extra '{extra}': pip install 'uavform[{extra}]' "
+                      "(in a checkout: pip install -c constraints.txt -e '.[" + extra + "]')")
+
+
+def _check_out_folder(out: str) -> Path:
+    path = Path(out)
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"--out {out}: a file of that name exists; --out is a folder (give a new or existing folder)")
+    return path
+
+
+def flight_outcome(env) -> dict:
+    """Why the episode the env just played ended: outcome, reason, final goal distance (leader to goal, m).
+
+    Computed from what the env exposes (``success``, ``crashed``, ``history``, ``step_count`` vs
+    ``max_cycles``): outcome is ``success``, ``crash`` (the first UAV to crash, and into what: an
+    obstacle, another UAV, or out of the world's x/y bounds), ``time-out`` (with ``stuck`` when the
+    leader moved less than STUCK_DISTANCE in the last STUCK_SECONDS) or ``ended`` (stopped early).
+    """
+    cfg = env.config
+    pos = np.asarray(env.history["positions"], dtype=np.float64)        # (T+1, N, 3)
+    crashed = np.asarray(env.history["crashed"], dtype=bool)
+    clearance = np.asarray(env.history["clearance"], dtype=np.float64)
+    goal_distance = float(np.linalg.norm(pos[-1, 0] - np.asarray(env.goal)))
+    dt = cfg.uav.dt
+    names = ["leader" if i == 0 else f"follower {i}" for i in range(pos.shape[1])]
+    if env.success:
+        return {"outcome": "success", "reason": f"the leader is within r_goal = {cfg.episode.r_goal:g} m of the goal "
+                "and every live follower within e_f of its slot", "goal_distance": goal_distance}
+    if crashed[-1].any():
+        step = int(np.argmax(crashed.any(axis=1)))
+        i = int(np.flatnonzero(crashed[step])[0])
+        p = pos[step]
+        gaps = np.linalg.norm(p - p[i], axis=1)
+        gaps[i] = np.inf
+        j = int(np.argmin(gaps))
+        lo, hi = np.asarray(env.scenario.bounds_lo), np.asarray(env.scenario.bounds_hi)
+        if clearance[step, i] < 0:
+            what = "an obstacle"
+        elif gaps[j] < 2 * cfg.uav.r_uav:
+            what = f"uav_{j} ({names[j]})"
+        elif np.any((p[i, :2] < lo[:2]) | (p[i, :2] > hi[:2])):
+            what = "the edge of the world (left its x/y bounds)"
+        else:
+            what = "something"
+        return {"outcome": "crash", "reason": f"uav_{i} ({names[i]}) crashed into {what} at step {step} "
+                f"(t = {step * dt:.1f} s)", "goal_distance": goal_distance}
+    if env.step_count >= env.max_cycles:
+        window = max(1, round(STUCK_SECONDS / dt))
+        moved = float(np.linalg.norm(pos[-1, 0] - pos[-1 - window, 0])) if len(pos) > window else math.inf
+        ferr = np.asarray(env.history["formation_error"], dtype=np.float64)[-1]
+        if goal_distance < cfg.episode.r_goal and len(ferr) > 1:
+            k = int(np.argmax(ferr[1:])) + 1
+            reason = (f"the leader reached the goal but {names[k]} ended {ferr[k]:.1f} m from its slot "
+                      f"(e_f = {cfg.formation.e_f:g} m): its slot may be blocked")
+        elif moved < STUCK_DISTANCE:
+            reason = f"stuck: the leader moved {moved:.2f} m in the last {STUCK_SECONDS:g} s"
+        else:
+            reason = f"the step limit ({env.max_cycles} steps) ran out"
+        return {"outcome": "time-out", "reason": reason, "goal_distance": goal_distance}
+    return {"outcome": "ended", "reason": "no UAV could fly on", "goal_distance": goal_distance}
+
+
+def _preflight_fly(args):
+    """Check every flag and build the env and policy, before anything flies; errors name the flag or file."""
+    from .formation_v0 import parallel_env
+    from .policies import load_policy
+    from .scenarios import load_scenario
+
+    out = _check_out_folder(args.out)
+    try:
+        load_scenario(args.scenario, args.seed, n_uavs=args.n_uavs, formation=args.formation,
+                      difficulty=args.difficulty)
+    except FileNotFoundError:
+        raise ValueError(f"--scenario {args.scenario}: no such file") from None
+    except ValueError as e:
+        flag = "--difficulty" if "difficulty" in str(e).split(":")[0] else "--scenario"
+        raise _flag(flag, args.difficulty if flag == "--difficulty" else args.scenario, e) from None
+    kwargs = dict(scenario=args.scenario, n_uavs=args.n_uavs, formation=args.formation, difficulty=args.difficulty,
+                  render_mode="rgb_array" if args.video else None, top_down=args.top_down, max_cycles=args.max_steps)
+    penv = parallel_env(**{k: v for k, v in kwargs.items() if v is not None})
+    try:
+        policy = load_policy(args.policy)
+    except ValueError as e:
+        raise _flag("--policy", args.policy, e) from None
+    except ImportError as e:
+        raise _missing_extra(e, f"--policy {args.policy}") from None
+    return penv, policy, out
 
 
 def _fly(args) -> int:
     from tqdm import tqdm
 
+    from .evaluation.runner import code_version
     from .files import atomic_write_json
-    from .formation_v0 import parallel_env
-    from .policies import load_policy
+    from .kernels import compile_notice
     from .render import plot_episode, write_video
     from .rollout import run_episode
 
-    kwargs = dict(scenario=args.scenario, n_uavs=args.n_uavs, formation=args.formation, difficulty=args.difficulty,
-                  render_mode="rgb_array" if args.video else None, top_down=args.top_down)
-    if args.max_steps is not None:
-        kwargs["max_cycles"] = args.max_steps
-    penv = parallel_env(**{k: v for k, v in kwargs.items() if v is not None})
-    policy = load_policy(args.policy)
+    penv, policy, out = _preflight_fly(args)
+    compile_notice()
     frames = []
 
     def grab(env):
         if args.video and env.step_count % args.video_every == 0:
             frames.append(env.render())
 
+    # No ETA: an episode ends at success, usually well before the step limit, and the first steps include
+    # the kernels' compilation; the bar shows steps, elapsed time and the leader's distance to the goal.
     with tqdm(total=penv.unwrapped.max_cycles, desc=f"{args.policy} on {args.scenario}", unit="step",
-              disable=args.quiet, leave=False) as bar:
+              disable=args.quiet, leave=False,
+              bar_format="{desc}: {n_fmt}/{total_fmt} steps |{bar}| {elapsed}{postfix}") as bar:
         metrics = run_episode(penv, policy, args.seed, progress=bar, on_step=grab)
     env = penv.unwrapped
-    out = Path(args.out)
+    picture = out / f"trajectory.{args.format}"
     summary = {"scenario": args.scenario, "policy": args.policy, "seed": args.seed, "n_uavs": env.n_uavs,
-               "formation": env.config.formation.shape, "steps": env.step_count, **metrics}
+               "formation": env.config.formation.shape, "steps": env.step_count, "max_steps": env.max_cycles,
+               **flight_outcome(env), **{k: v for k, v in metrics.items() if not math.isnan(v)},
+               "code_version": code_version()}
+    summary["units"] = {k: u for k, u in METRIC_UNITS.items() if k in summary}
     atomic_write_json(out / "summary.json", summary)
-    plot_episode(env, out / "trajectory.png", title=f"{args.policy} on {args.scenario} (seed {args.seed})")
+    plot_episode(env, picture, title=f"{args.policy} on {args.scenario} (seed {args.seed})")
     if args.video and frames:
         write_video(frames, out / "episode.gif", fps=max(1, int(10 / args.video_every)))
+    print(outcome_line(summary))
     if not args.quiet:
         _print_summary(summary)
-        print(f"wrote {out / 'summary.json'} and {out / 'trajectory.png'}" + (" and episode.gif" if args.video else ""))
+        print(f"wrote {out / 'summary.json'} and {picture}" + (f" and {out / 'episode.gif'}" if args.video else ""))
     return 0
 
 
+def outcome_line(summary: dict) -> str:
+    """One line: the outcome, the mission, and why it ended (what ``--quiet`` prints)."""
+    n = summary["n_uavs"]
+    head = (f"{summary['outcome'].upper()}: {summary['policy']} on {summary['scenario']}, {n} UAV{'s' if n != 1 else ''}"
+            f" ({summary['formation']}), seed {summary['seed']}, {summary['steps']} steps "
+            f"({summary['flight_time']:.1f} s)")
+    if summary["outcome"] == "success":
+        return head
+    return f"{head}; the leader ended {summary['goal_distance']:.1f} m from the goal: {summary['reason']}"
+
+
 def _print_summary(summary: dict) -> None:
-    outcome = "SUCCESS" if summary["success"] else ("COLLISION" if summary["collision"] else "TIME-OUT")
-    print(f"{outcome}: {summary['policy']} on {summary['scenario']}, {summary['n_uavs']} UAVs "
-          f"({summary['formation']}), seed {summary['seed']}, {summary['steps']} steps")
-    rows = [("flight time", "flight_time", "s"), ("leader path length", "path_length_leader", "m"),
-            ("min clearance", "min_clearance", "m"), ("min separation", "min_separation", "m"),
-            ("formation error RMS", "formation_error_rms", "m"), ("formation error max", "formation_error_max", "m"),
-            ("time to re-form", "time_to_reform", "s"), ("total turning (leader)", "total_turning", "rad"),
-            ("planning per UAV-step, median", "planning_ms_median", "ms"),
-            ("planning per UAV-step, p95", "planning_ms_p95", "ms")]
-    for label, key, unit in rows:
-        print(f"  {label:<32} {summary[key]:>9.3f} {unit}")
+    rows = [("flight time", "flight_time"), ("leader path length", "path_length_leader"),
+            ("min clearance", "min_clearance"), ("min separation", "min_separation"),
+            ("formation error RMS", "formation_error_rms"), ("formation error max", "formation_error_max"),
+            ("time to re-form", "time_to_reform"), ("total turning (leader)", "total_turning"),
+            ("planning per UAV-step, median", "planning_ms_median"), ("planning per UAV-step, p95", "planning_ms_p95")]
+    for label, key in rows:
+        if key in summary:                   # formation metrics do not apply to a single UAV
+            print(f"  {label:<32} {summary[key]:>9.3f} {METRIC_UNITS[key]}")
 
 
 def _scenarios(args) -> int:
     from .scenarios import list_scenarios, make_scenario
 
     if args.export:
-        scn = make_scenario(args.export, seed=args.seed, difficulty=args.difficulty)
-        scn.to_toml(args.out)
-        print(f"wrote {args.out}")
+        out = Path(args.out)
+        if out.is_dir():
+            raise ValueError(f"--out {args.out}: is a folder; give a file name such as my.toml")
+        if out.suffix != ".toml":
+            raise ValueError(f"--out {args.out}: expected a file name ending in .toml (the loaders look for it)")
+        if out.exists() and not args.force:
+            raise ValueError(f"--out {args.out}: the file exists; add --force to overwrite it, or choose another --out")
+        try:
+            make_scenario(args.export)
+        except ValueError as e:
+            raise _flag("--export", args.export, e) from None
+        try:
+            scn = make_scenario(args.export, seed=args.seed, n_uavs=args.n_uavs, formation=args.formation,
+                                difficulty=args.difficulty)
+        except ValueError as e:
+            raise _flag("--difficulty", args.difficulty, e) from None
+        scn.to_toml(out)
+        m = scn.mission
+        print(f"wrote {out}: {scn.name}@{scn.version} seed {scn.seed}, {m.n_uavs} UAV{'s' if m.n_uavs != 1 else ''} "
+              f"({m.formation}), {len(scn.obstacles)} obstacles")
         return 0
     for name in list_scenarios():
         print(name)
@@ -107,30 +295,84 @@ def _leaderboard(args) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="uavform", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True)
+def version_text() -> str:
+    from . import __version__
+    from .evaluation.runner import code_version
 
-    fly = sub.add_parser("fly", help="fly one episode with a policy and write a summary and pictures")
-    fly.add_argument("--scenario", default="forest", help="scenario name or .toml path (default: forest)")
-    fly.add_argument("--policy", default="expert", help="short name, module:attr or checkpoint (default: expert)")
-    fly.add_argument("--n-uavs", type=int, default=None)
-    fly.add_argument("--formation", default=None)
-    fly.add_argument("--difficulty", default=None)
-    fly.add_argument("--seed", type=int, default=0)
-    fly.add_argument("--max-steps", type=int, default=None, help="episode length (default: the env's max_cycles)")
-    fly.add_argument("--out", default="runs/demo", help="output folder (default: runs/demo)")
-    fly.add_argument("--video", action="store_true", help="also write an animation (episode.gif)")
-    fly.add_argument("--video-every", type=int, default=5, help="render every k-th step into the video")
-    fly.add_argument("--top-down", action="store_true", help="render the video from above")
-    fly.add_argument("--quiet", action="store_true")
+    return f"uavform {__version__} (code {code_version()})"
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: the flag, what is wrong, and where to read the options (no usage dump)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
+
+
+class _VersionAction(argparse.Action):
+    """--version: the package version and the code version (git commit when run from a checkout)."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(version_text())
+        parser.exit()
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="uavform", description=DESCRIPTION)
+    parser.add_argument("--version", action=_VersionAction,
+                        help="print the package version and the code version (git commit in a checkout) and exit")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    fly = sub.add_parser("fly", help="fly one episode with a policy and write a summary and pictures",
+                         description="Fly one episode and write OUT/summary.json and OUT/trajectory.FORMAT.")
+    fly.add_argument("--scenario", default="forest",
+                     help="registered scenario name (see 'uavform scenarios'), optionally NAME@VERSION, or a .toml "
+                          "scenario file (default: forest)")
+    fly.add_argument("--policy", default="expert",
+                     help=f"short name ({', '.join(available_policies())}), module:attr of a policy class, or a "
+                          "checkpoint .zip (needs the train extra) (default: expert)")
+    fly.add_argument("--n-uavs", type=int_in(1, MAX_UAVS), default=None, metavar="N",
+                     help=f"number of UAVs, 1-{MAX_UAVS}; uav_0 leads (default: the scenario's, 5; classic-2d 1)")
+    fly.add_argument("--formation", choices=FORMATION_SHAPES, default=None,
+                     help="formation shape (default: the scenario's, wedge)")
+    fly.add_argument("--difficulty", default=None,
+                     help="random-3d: easy | medium | hard (default medium); classic-2d: base | extended "
+                          "(default base); other scenarios have none")
+    fly.add_argument("--seed", type=int_in(0), default=0,
+                     help="episode seed, an integer >= 0: the obstacle layout and sensor noise (default: 0)")
+    fly.add_argument("--max-steps", type=int_in(1), default=None, metavar="STEPS",
+                     help=f"step limit of the episode, >= 1 (one step = {_DEFAULTS.uav.dt:g} s; "
+                          f"default: {_DEFAULTS.episode.max_cycles})")
+    fly.add_argument("--out", default="runs/demo", help="output folder, created if needed (default: runs/demo)")
+    fly.add_argument("--format", choices=PICTURE_FORMATS, default="png",
+                     help="file format of the trajectory picture (default: png)")
+    fly.add_argument("--video", action="store_true", help="also write an animation, OUT/episode.gif")
+    fly.add_argument("--video-every", type=int_in(1), default=5, metavar="K",
+                     help="with --video, draw every K-th step, K >= 1 (default: 5)")
+    fly.add_argument("--top-down", action="store_true", help="with --video, draw the animation from above")
+    fly.add_argument("--quiet", action="store_true",
+                     help="no progress bar and no metric table: print only the one-line outcome")
     fly.set_defaults(func=_fly)
 
-    scn = sub.add_parser("scenarios", help="list the registered scenarios, or export one to TOML")
-    scn.add_argument("--export", metavar="NAME", default=None)
-    scn.add_argument("--seed", type=int, default=0)
-    scn.add_argument("--difficulty", default=None)
-    scn.add_argument("--out", default="scenario.toml")
+    scn = sub.add_parser("scenarios", help="list the registered scenarios, or export one to a commented TOML file",
+                         description="Without --export, list the registered scenarios. With --export NAME, write "
+                                     "that generated scenario to --out as a commented TOML file that "
+                                     "'uavform fly --scenario FILE' and parallel_env(scenario=FILE) load.")
+    scn.add_argument("--export", metavar="NAME", default=None,
+                     help="registered scenario to export (one of the names listed without --export)")
+    scn.add_argument("--seed", type=int_in(0), default=0,
+                     help="generator seed, an integer >= 0: which obstacle layout (default: 0)")
+    scn.add_argument("--n-uavs", type=int_in(1, MAX_UAVS), default=None, metavar="N",
+                     help=f"number of UAVs, 1-{MAX_UAVS} (default: the scenario's)")
+    scn.add_argument("--formation", choices=FORMATION_SHAPES, default=None,
+                     help="formation shape (default: the scenario's, wedge)")
+    scn.add_argument("--difficulty", default=None,
+                     help="random-3d: easy | medium | hard; classic-2d: base | extended (default: the scenario's)")
+    scn.add_argument("--out", default="scenario.toml", help="file to write (default: scenario.toml)")
+    scn.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     scn.set_defaults(func=_scenarios)
 
     lb = sub.add_parser("leaderboard", help="run a benchmark suite for some policies and write the ranked table")
@@ -138,11 +380,11 @@ def build_parser() -> argparse.ArgumentParser:
     lb.add_argument("--policy", action="append", default=[],
                     help="short name, module:attr or checkpoint path; repeat for several policies")
     lb.add_argument("--out", default="results", help="results folder (default: results)")
-    lb.add_argument("--workers", type=int, default=1, help="parallel episodes (default: 1, in this process)")
+    lb.add_argument("--workers", type=int_in(1), default=1, help="parallel episodes (default: 1, in this process)")
     lb.add_argument("--backend", choices=["process", "ray"], default="process",
                     help="process pool (default) or Ray tasks (pip install 'uavform[ray]')")
     lb.add_argument("--resume", action="store_true", help="continue a results folder, skipping finished episodes")
-    lb.add_argument("--time-limit", type=float, default=900.0,
+    lb.add_argument("--time-limit", type=number_in(0.0, None, lo_open=True), default=900.0,
                     help="wall-clock seconds per episode before it is recorded as failed (default: 900)")
     lb.add_argument("--show", metavar="RESULTS_DIR", default=None, help="print the table of a results folder and exit")
     lb.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -160,6 +402,9 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except (ValueError, FileNotFoundError) as e:
         print(f"uavform {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except ImportError as e:                     # an optional extra that is not installed
+        print(f"uavform {args.command}: error: {_missing_extra(e, 'uavform ' + args.command)}", file=sys.stderr)
         return 2
 
 

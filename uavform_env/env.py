@@ -21,6 +21,7 @@ from .actions import check_actions
 from .config import EnvConfig
 from .dynamics import PSI, STATE_DIM, V, VZ, W
 from .formation import formation_errors, slot_offsets, slot_positions
+from .kernels import compile_notice
 from .observations import ObservationLayout, build_observations
 from .occupancy import OccupancyMap
 from .onboard import OnboardView, PriorMap
@@ -71,6 +72,9 @@ class FormationEnv(ParallelEnv):
                            if v is not None}
         self._difficulty = difficulty
         self._fixed_scenario, self._scenario_name = self._resolve_scenario(scenario)
+        # how errors name the scenario: a loaded file by its path, otherwise by name, version and seed
+        self._source = f"scenario file {scenario}" if isinstance(scenario, (str, Path)) and \
+            str(scenario).endswith(".toml") else None
         first = self._scenario_for(0)
         mission = first.mission
         cfg = cfg.replace(formation=cfg.formation.replace(shape=mission.formation, spacing=mission.spacing))
@@ -121,6 +125,7 @@ class FormationEnv(ParallelEnv):
 
     # ------------------------------------------------------------------ reset
     def reset(self, seed: int | None = None, options: dict | None = None):
+        compile_notice()                      # one stderr line at the first reset if numba's cache is cold
         if seed is not None:
             self._episode_seeds = np.random.default_rng(seed)
         elif self._episode_seeds is not None:   # Gymnasium's convention: unseeded resets continue the seeded stream
@@ -134,7 +139,7 @@ class FormationEnv(ParallelEnv):
         scn = self._scenario_for(layout_seed)
         cfg = self.config
         world = self.world if scn == self.scenario else scn.build_world()
-        validate_scenario(scn, cfg.uav, cfg.formation.z_ref, world)
+        validate_scenario(scn, cfg.uav, cfg.formation.z_ref, world, source=self._source)
         if world is not self.world:
             self.scenario, self.world = scn, world
             self._prior = self._build_prior()

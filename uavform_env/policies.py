@@ -59,7 +59,11 @@ def policy_factory(spec: str):
         loader = loaders[key].load()
         return lambda: loader(path)
     if ":" in spec:
-        return _import_attr(spec)
+        factory = _import_attr(spec)
+        if not callable(factory):
+            raise ValueError(f"policy {spec!r}: {spec.partition(':')[2]!r} is a {type(factory).__name__}, not a "
+                             "class or function that makes a policy; give 'module:ClassName'")
+        return factory
     raise ValueError(f"unknown policy {spec!r}; known short names: {available_policies()}, "
                      "or give 'module:attr' or a checkpoint path")
 

@@ -45,6 +45,7 @@ CAMERA_ELEVATION_DEG = 28.0
 # Camera azimuth relative to the start->goal direction: behind the start and to the right of the path.
 CAMERA_AZIMUTH_OFFSET_DEG = -135.0
 SNAPSHOT_PERIOD_S = 10.0             # formation snapshots in the episode picture
+FAR_OFF_SLOT_M = 5.0                 # the formation-error strip marks and counts followers this far off their slot
 DEFAULT_FPS = 10
 VIDEO_SUFFIXES = (".gif", ".mp4")
 
@@ -381,11 +382,42 @@ class Renderer:
 
 
 # ---------------------------------------------------------------------------------------------- episode picture
-def plot_episode(env, path, title: str | None = None) -> None:
-    """The trajectory picture of a finished (or running) episode: 3D and top views, altitude profile.
+def _uav_handles(colours: list[str]) -> list:
+    """One legend entry per UAV: the leader, then follower 1 .. N-1 in their colours."""
+    return [Line2D([], [], color=c, lw=2.4 if i == 0 else 1.5, marker="D" if i == 0 else None,
+                   label="leader (uav_0)" if i == 0 else f"follower {i}") for i, c in enumerate(colours)]
 
-    Formation snapshots (leader->follower links) are drawn every ``SNAPSHOT_PERIOD_S`` seconds. The
-    format follows the suffix of ``path`` (PNG for ``uavform fly``); the file is written atomically.
+
+def _formation_panel(ax, t: np.ndarray, ferr: np.ndarray, colours: list[str], e_f: float) -> None:
+    """Each follower's distance from its slot over time, with e_f and FAR_OFF_SLOT_M marked and their shares."""
+    n = ferr.shape[1]
+    ax.set_title("formation error: each follower's distance from its slot", fontsize=11)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("slot error [m]")
+    ax.grid(True, lw=0.3, alpha=0.5)
+    if n == 1:
+        ax.text(0.5, 0.5, "a single UAV: no formation", transform=ax.transAxes, ha="center", va="center")
+        ax.set_yticks([])
+        return
+    for i in reversed(range(1, n)):
+        ax.plot(t, ferr[:, i], color=colours[i], lw=1.1)
+    worst = ferr[:, 1:].max(axis=1)
+    for level, style in ((e_f, ":"), (FAR_OFF_SLOT_M, "--")):
+        ax.axhline(level, color="0.35", ls=style, lw=1.2)
+        ax.text(1.003, level, f"{level:g} m", transform=ax.get_yaxis_transform(), va="center", fontsize=9)
+    ax.text(0.995, 0.95, f"some follower > {e_f:g} m (e_f) off its slot in {np.mean(worst > e_f):.0%} of steps, "
+            f"> {FAR_OFF_SLOT_M:g} m in {np.mean(worst > FAR_OFF_SLOT_M):.0%}", transform=ax.transAxes,
+            ha="right", va="top", fontsize=9, bbox=dict(fc="white", ec="0.7", alpha=0.9))
+    ax.set_ylim(0.0, max(float(worst.max()) * 1.08, FAR_OFF_SLOT_M * 1.2))
+
+
+def plot_episode(env, path, title: str | None = None) -> Figure:
+    """The trajectory picture of a finished (or running) episode.
+
+    3D view (trajectories only), top view with formation snapshots (leader->follower links every
+    ``SNAPSHOT_PERIOD_S`` seconds), the altitude profile and each follower's formation error over time.
+    The format follows the suffix of ``path`` (``uavform fly --format png|svg|pdf``); the file is
+    written atomically. Returns the figure (axes: 3D, top view, altitude, formation error, colour key).
     """
     path = Path(path)
     fmt = path.suffix.lower().lstrip(".")
@@ -405,58 +437,63 @@ def plot_episode(env, path, title: str | None = None) -> None:
     every = max(1, round(SNAPSHOT_PERIOD_S / dt))
     snaps = np.unique(np.append(np.arange(0, len(pos), every), len(pos) - 1))
 
-    fig = Figure(figsize=(16, 9.5), dpi=100)
+    fig = Figure(figsize=(16, 11.5), dpi=100)
     FigureCanvasAgg(fig)
-    # Fixed placement: 3D view | top view + colour key above, altitude strip + legend below.
-    ax3 = fig.add_axes((0.01, 0.27, 0.49, 0.68), projection="3d")
-    axt = fig.add_axes((0.53, 0.33, 0.37, 0.58))
-    axz = fig.add_axes((0.05, 0.065, 0.70, 0.18))
+    # Fixed placement: 3D view | top view + colour key; below, the altitude and formation-error strips + legend.
+    ax3 = fig.add_axes((-0.02, 0.36, 0.54, 0.62), projection="3d")
+    axt = fig.add_axes((0.53, 0.45, 0.37, 0.48))
+    axz = fig.add_axes((0.05, 0.265, 0.66, 0.125))
+    axf = fig.add_axes((0.05, 0.05, 0.66, 0.17), sharex=axz)
     _set_limits(ax3, env.scenario, True, zoom=1.0)
     _set_limits(axt, env.scenario, False)
+    ax3.zaxis.set_rotate_label(False)                 # reads "z [m]" upwards, not "[m] z"
+    ax3.set_zlabel("z [m]", rotation=90)
     _add_obstacles_3d(ax3, env.world, norm)
     _add_obstacles_top(axt, env.world, norm)
-    _height_colorbar(fig, norm, z_ref, cax=fig.add_axes((0.925, 0.38, 0.012, 0.48)))
+    _height_colorbar(fig, norm, z_ref, cax=fig.add_axes((0.925, 0.48, 0.012, 0.42)))
     axt.add_patch(Circle(np.asarray(env.goal)[:2], env.config.episode.r_goal, fill=False, ec=GOAL_COLOUR, lw=1.5,
                          zorder=6))
 
     start, goal = np.asarray(env.scenario.mission.start, float), np.asarray(env.goal, float)
+    for k in snaps:                                   # formation snapshots in the top view only (less clutter)
+        col = _segments(axt, colors="0.25", linewidths=0.9, linestyles="--", zorder=4, alpha=0.7)
+        _set_segments(col, np.repeat(pos[k, :1], n - 1, axis=0), pos[k, 1:])
+        axt.plot(*pos[k].T[:2], ls="none", marker="o", ms=3.5, color="0.25", zorder=4)
     for ax in (ax3, axt):
         d = _dims(ax)
-        for k in snaps:
-            starts = np.repeat(pos[k, :1], n - 1, axis=0)
-            col = _segments(ax, colors="0.25", linewidths=0.9, linestyles="--", zorder=4, alpha=0.8)
-            _set_segments(col, starts, pos[k, 1:])
-            ax.plot(*pos[k].T[:d], ls="none", marker="o", ms=3.5, color="0.25", zorder=4)
         for i in reversed(range(n)):
             ax.plot(*pos[:, i].T[:d], color=colours[i], lw=2.4 if i == 0 else 1.3, zorder=5 if i == 0 else 3)
         ax.plot(*start[:d, None], ls="none", marker="s", ms=10, mfc="white", mec="k", mew=1.5, zorder=6)
         ax.plot(*goal[:d, None], ls="none", marker="*", ms=18, color=GOAL_COLOUR, mec="k", zorder=6)
         if len(crash_pts):
             ax.plot(*crash_pts.T[:d], ls="none", marker="X", ms=12, color=CRASH_COLOUR, mec="k", mew=0.6, zorder=7)
-    ax3.set_title("3D view (vertical scale stretched)", fontsize=11, y=0.93)
-    axt.set_title("top view (obstacles coloured by height)", fontsize=11)
+    ax3.set_title("3D view (vertical scale stretched)", fontsize=11, y=0.95)
+    axt.set_title(f"top view: obstacles coloured by height, formation every {SNAPSHOT_PERIOD_S:g} s", fontsize=11)
 
     t = np.arange(len(pos)) * dt
     for i in reversed(range(n)):
-        axz.plot(t, pos[:, i, 2], color=colours[i], lw=2.0 if i == 0 else 1.1, label="leader" if i == 0 else None)
+        axz.plot(t, pos[:, i, 2], color=colours[i], lw=2.0 if i == 0 else 1.1)
     axz.axhline(z_ref, color="0.45", ls=":", lw=1.5)
     axz.text(1.003, z_ref, "z_ref", transform=axz.get_yaxis_transform(), va="center", fontsize=9)
     if len(crash_pts):
         axz.plot(crash_step[crash_step >= 0] * dt, crash_pts[:, 2], ls="none", marker="X", ms=10,
                  color=CRASH_COLOUR, mec="k", mew=0.6)
     axz.set_xlim(0.0, max(t[-1], dt))
-    axz.set_xlabel("time [s]")
-    axz.set_ylabel("altitude z [m]")
-    axz.set_title("altitude profile", fontsize=11)
+    axz.set_ylabel("z [m]")
+    axz.set_title("altitude", fontsize=11)
     axz.grid(True, lw=0.3, alpha=0.5)
+    axz.tick_params(labelbottom=False)
+    _formation_panel(axf, t, np.asarray(env.history["formation_error"], dtype=np.float64), colours,
+                     env.config.formation.e_f)
 
-    names = ("leader", "followers", "snapshots", "start", "goal") + (("crashed",) if len(crash_pts) else ()) + \
-        ("obstacles",)
-    fig.legend(handles=_legend_handles(names), loc="lower right", bbox_to_anchor=(0.99, 0.065), ncols=2, fontsize=10)
+    names = ("snapshots", "start", "goal") + (("crashed",) if len(crash_pts) else ()) + ("obstacles",)
+    fig.legend(handles=_uav_handles(colours) + _legend_handles(names), loc="lower right",
+               bbox_to_anchor=(0.995, 0.05), ncols=1 if n <= 10 else 2, fontsize=10)
     fig.suptitle(title if title is not None else _default_title(env, crashed[-1]), fontsize=13)
     buf = io.BytesIO()
     fig.savefig(buf, format=fmt)
     atomic_write_bytes(path, buf.getvalue())
+    return fig
 
 
 def _default_title(env, crashed_final: np.ndarray) -> str:

@@ -117,8 +117,8 @@ class Scenario:
         return replace(self, mission=replace(self.mission, **changes))
 
     def to_toml(self, path) -> None:
-        """Write the scenario as TOML (temporary file + rename, so readers never see half a file)."""
-        atomic_write_bytes(path, tomli_w.dumps(_to_document(self)).encode("utf-8"))
+        """Write the scenario as commented TOML (temporary file + rename, so readers never see half a file)."""
+        atomic_write_bytes(path, commented_toml(self).encode("utf-8"))
 
     @classmethod
     def from_toml(cls, path) -> Scenario:
@@ -156,6 +156,58 @@ def _to_document(scn: Scenario) -> dict:
             "obstacles": [_obstacle_entry(ob) for ob in scn.obstacles],
             "mission": {"start": list(m.start), "goal": list(m.goal), "start_heading": m.start_heading,
                         "formation": m.formation, "spacing": m.spacing, "n_uavs": m.n_uavs}}
+
+
+# What each table and key of a scenario file means, written as comments by ``commented_toml``.
+_FILE_HEADER = """\
+# uavform scenario file: one fixed world and one mission.
+# Fly it with `uavform fly --scenario THIS.toml`, or in Python `parallel_env(scenario="THIS.toml")`.
+# Units: lengths and positions in metres, angles in radians; x, y horizontal, z up from the ground (z = 0).
+"""
+_TABLE_NOTES = {
+    "scenario": "Where this file came from: informational when loading (the file is always this one world).",
+    "world": "The box the UAVs fly in and the voxel size of its occupancy grid.",
+    "mission": "The leader (uav_0) flies from start to goal; followers start on their formation slots.",
+    "obstacles": "Solid obstacles, one [[obstacles]] table each, of three types:\n"
+                 "  box:      lo = [x, y, z] and hi = [x, y, z], opposite corners (m)\n"
+                 "  cylinder: center = [x, y], radius, from z_lo up to z_hi (m), vertical\n"
+                 "  sphere:   center = [x, y, z], radius (m)",
+}
+_KEY_NOTES = {
+    "scenario": {"name": "generator name", "version": "generator version (name@version)",
+                 "seed": "generator seed that made this layout"},
+    "world": {"bounds_lo": "lowest corner [x, y, z] (m); z starts at the ground, 0",
+              "bounds_hi": "highest corner [x, y, z] (m); leaving the x/y bounds is a crash",
+              "resolution": "voxel edge (m) of the ground-truth grid and the UAVs' maps"},
+    "mission": {"start": "leader's start [x, y, z] (m); followers start at the formation altitude z_ref",
+                "goal": "leader's goal [x, y, z] (m)", "start_heading": "initial yaw of every UAV (rad, 0 = +x)",
+                "formation": f"formation shape: {' | '.join(FORMATION_SHAPES)}",
+                "spacing": "distance between neighbouring formation slots (m)",
+                "n_uavs": "number of UAVs, uav_0 (the leader) .. uav_{N-1}"},
+}
+
+
+def _toml_value(value) -> str:
+    """One TOML value on one line (tomli_w's exact number format; its arrays would span several lines)."""
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    return tomli_w.dumps({"v": value})[len("v = "):].rstrip("\n")
+
+
+def commented_toml(scn: Scenario) -> str:
+    """The scenario file text: the same document ``from_toml`` reads, each table and key with a comment."""
+    doc = _to_document(scn)
+    lines = _FILE_HEADER.splitlines()
+    for table in ("scenario", "world", "mission"):
+        lines += ["", *(f"# {line}" for line in _TABLE_NOTES[table].splitlines()), f"[{table}]"]
+        width = max(len(f"{k} = {_toml_value(v)}") for k, v in doc[table].items())
+        lines += [f"{f'{k} = {_toml_value(v)}':<{width}}  # {_KEY_NOTES[table][k]}" for k, v in doc[table].items()]
+    lines += ["", *(f"# {line}" for line in _TABLE_NOTES["obstacles"].splitlines())]
+    if not doc["obstacles"]:
+        lines.append("# (none: an empty world)")
+    for ob in doc["obstacles"]:
+        lines += ["[[obstacles]]", *(f"{k} = {_toml_value(v)}" for k, v in ob.items()), ""]
+    return "\n".join(lines).rstrip("\n") + "\n"
 
 
 class _Reader:
@@ -539,8 +591,12 @@ def load_scenario(name_or_path, seed: int = 0, *, n_uavs: int | None = None, for
                          difficulty=difficulty)
 
 
-def validate_scenario(scn: Scenario, limits: UAVLimits, z_ref: float, world: World | None = None) -> None:
+def validate_scenario(scn: Scenario, limits: UAVLimits, z_ref: float, world: World | None = None, *,
+                      source: str | None = None) -> None:
     """Raise ValueError listing every reason the mission cannot start with UAVs of these limits.
+
+    ``source`` names the scenario in the message (e.g. ``"scenario file my.toml"``); by default its name,
+    version and seed.
 
     Checked: the leader's start and the goal, and every follower's start slot (at ``z_ref``), lie inside
     the bounds and the altitude band with clearance >= r_uav + r_safe; the formation holds n_uavs; the
@@ -576,5 +632,6 @@ def validate_scenario(scn: Scenario, limits: UAVLimits, z_ref: float, world: Wor
         if c < r_clear:
             problems.append(f"{where} has clearance {c:.3f} m < r_uav + r_safe = {r_clear:g} m")
     if problems:
-        raise ValueError(f"scenario {scn.name!r} (version {scn.version}, seed {scn.seed}) cannot be flown: "
+        who = source if source is not None else f"scenario {scn.name!r} (version {scn.version}, seed {scn.seed})"
+        raise ValueError(f"{who} cannot be flown: "
                          + "; ".join(problems))

@@ -37,13 +37,15 @@ def _reproduce(args) -> int:
 
 def register(subparsers) -> None:
     """Add ``reproduce`` to the ``uavform`` command (entry point ``uavform.commands``)."""
+    from uavform_env.cli import int_in
+
     p = subparsers.add_parser("reproduce", help="run experiments E1-E6 and write the paper-reproduction report")
     p.add_argument("--out", default=DEFAULT_OUT, help=f"output folder (default: {DEFAULT_OUT})")
-    p.add_argument("--seeds", type=int, default=None,
+    p.add_argument("--seeds", type=int_in(1), default=None,
                    help="seeds per setting for every experiment (default: each experiment's own count)")
     p.add_argument("--quick", action="store_true",
                    help="one seed, one or two settings per experiment, short episodes (a smoke test, minutes)")
     p.add_argument("--resume", action="store_true", help="continue an output folder, skipping finished runs")
-    p.add_argument("--workers", type=int, default=1, help="parallel runs (default: 1, in this process)")
+    p.add_argument("--workers", type=int_in(1), default=1, help="parallel runs (default: 1, in this process)")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=_reproduce)

@@ -1,0 +1,70 @@
+"""Telling the user when numba is about to compile the kernels (a cold cache), instead of sitting silent.
+
+The hot loops are ``@njit(cache=True)`` kernels: the first run compiles them (about a minute) and writes
+numba's cache next to each module (``__pycache__/*.nbi`` index + ``*.nbc`` data); later runs load them
+in a fraction of a second. ``cold_modules`` reads those index files through the dispatchers themselves,
+so it sees exactly what numba will see: a module is cold when none of its cached kernels is compiled
+in this process and none has a fresh index entry on disk (missing, from another numba, or older than
+the source). A module whose kernels are only partly cached is warm: some kernels (e.g. octree levels)
+may never run in a flight, and counting them would announce a compile on every run.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from numba.core.caching import NullCache
+from numba.core.registry import CPUDispatcher
+
+MESSAGE = "compiling kernels (first run only, about a minute)"
+# The packages of this distribution whose loaded modules are checked (the env never imports the others;
+# it only looks at them when the caller has loaded them, e.g. the expert's planners).
+PACKAGES = ("uavform_env", "baselines", "training")
+
+
+def _cached_kernels(module) -> list:
+    return [v for v in vars(module).values()
+            if isinstance(v, CPUDispatcher) and v.py_func.__module__ == module.__name__
+            and not isinstance(v._cache, NullCache)]
+
+
+def _warm(kernel) -> bool:
+    # numba's own index reader: {} when the index is missing, from another numba version, or stale
+    return bool(kernel.overloads) or bool(kernel._cache._cache_file._load_index())
+
+
+def cold_modules() -> list[str]:
+    """Loaded modules of ``PACKAGES`` whose numba kernels will compile on their first call (see module doc)."""
+    cold = []
+    for name, module in sorted(sys.modules.items()):
+        if module is None or name.partition(".")[0] not in PACKAGES:
+            continue
+        kernels = _cached_kernels(module)
+        if kernels and not any(_warm(k) for k in kernels):
+            cold.append(name)
+    return cold
+
+
+class CompileNotice:
+    """Prints ``MESSAGE`` once to stderr when kernels are cold; later calls do nothing.
+
+    One instance, ``compile_notice``, serves the process (the CLI before a flight, the env at its first
+    ``reset``): its ``checked`` flag is the only state, and it exists so the check (a few dozen small
+    file reads) and the message happen once per process rather than at every reset.
+    """
+
+    def __init__(self):
+        self.checked = False
+
+    def __call__(self, stream=None) -> bool:
+        """True if the message was printed now."""
+        if self.checked:
+            return False
+        self.checked = True
+        if not cold_modules():
+            return False
+        print(MESSAGE, file=stream if stream is not None else sys.stderr, flush=True)
+        return True
+
+
+compile_notice = CompileNotice()
