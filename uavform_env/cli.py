@@ -12,6 +12,8 @@ import sys
 from importlib.metadata import entry_points
 from pathlib import Path
 
+from .config import DISTURBANCE_PRESETS
+
 COMMAND_GROUP = "uavform.commands"
 
 
@@ -20,12 +22,13 @@ def _fly(args) -> int:
 
     from .files import atomic_write_json
     from .formation_v0 import parallel_env
+    from .metrics import episode_outcome
     from .policies import load_policy
     from .render import plot_episode, write_video
     from .rollout import run_episode
 
     kwargs = dict(scenario=args.scenario, n_uavs=args.n_uavs, formation=args.formation, difficulty=args.difficulty,
-                  render_mode="rgb_array" if args.video else None, top_down=args.top_down)
+                  render_mode="rgb_array" if args.video else None, top_down=args.top_down, disturbance=args.wind)
     if args.max_steps is not None:
         kwargs["max_cycles"] = args.max_steps
     penv = parallel_env(**{k: v for k, v in kwargs.items() if v is not None})
@@ -41,8 +44,10 @@ def _fly(args) -> int:
         metrics = run_episode(penv, policy, args.seed, progress=bar, on_step=grab)
     env = penv.unwrapped
     out = Path(args.out)
+    outcome, detail = episode_outcome(env)
     summary = {"scenario": args.scenario, "policy": args.policy, "seed": args.seed, "n_uavs": env.n_uavs,
-               "formation": env.config.formation.shape, "steps": env.step_count, **metrics}
+               "formation": env.config.formation.shape, "wind": args.wind, "steps": env.step_count,
+               "outcome": outcome, "outcome_detail": detail, **metrics}
     atomic_write_json(out / "summary.json", summary)
     plot_episode(env, out / "trajectory.png", title=f"{args.policy} on {args.scenario} (seed {args.seed})")
     if args.video and frames:
@@ -54,9 +59,10 @@ def _fly(args) -> int:
 
 
 def _print_summary(summary: dict) -> None:
-    outcome = "SUCCESS" if summary["success"] else ("COLLISION" if summary["collision"] else "TIME-OUT")
-    print(f"{outcome}: {summary['policy']} on {summary['scenario']}, {summary['n_uavs']} UAVs "
-          f"({summary['formation']}), seed {summary['seed']}, {summary['steps']} steps")
+    detail = f" ({summary['outcome_detail']})" if summary["outcome_detail"] else ""
+    print(f"{summary['outcome'].upper()}{detail}: {summary['policy']} on {summary['scenario']}, {summary['n_uavs']} "
+          f"UAVs ({summary['formation']}), seed {summary['seed']}, wind {summary['wind'] or 'calm'}, "
+          f"{summary['steps']} steps")
     rows = [("flight time", "flight_time", "s"), ("leader path length", "path_length_leader", "m"),
             ("min clearance", "min_clearance", "m"), ("min separation", "min_separation", "m"),
             ("formation error RMS", "formation_error_rms", "m"), ("formation error max", "formation_error_max", "m"),
@@ -92,8 +98,12 @@ def _leaderboard(args) -> int:
         suite = suite_from_manifest(manifest, f"{args.show}/suite.json")
         print(to_markdown(summarize(suite, read_results(args.show))), end="")
         return 0
+    if args.list:
+        for episode in load_suite(args.suite).episodes:
+            print(episode.key)
+        return 0
     if not args.policy:
-        raise ValueError("give at least one --policy (or --show RESULTS_DIR)")
+        raise ValueError("give at least one --policy (or --show RESULTS_DIR, or --list)")
     suite = load_suite(args.suite)
     print(f"suite {suite.name}: {len(suite.episodes)} episodes, hash {suite.hash}", flush=True)
     try:
@@ -118,6 +128,8 @@ def build_parser() -> argparse.ArgumentParser:
     fly.add_argument("--formation", default=None)
     fly.add_argument("--difficulty", default=None)
     fly.add_argument("--seed", type=int, default=0)
+    fly.add_argument("--wind", default=None, choices=list(DISTURBANCE_PRESETS),
+                     help="disturbance preset (README, Disturbances; default: the scenario file's, else calm)")
     fly.add_argument("--max-steps", type=int, default=None, help="episode length (default: the env's max_cycles)")
     fly.add_argument("--out", default="runs/demo", help="output folder (default: runs/demo)")
     fly.add_argument("--video", action="store_true", help="also write an animation (episode.gif)")
@@ -145,6 +157,7 @@ def build_parser() -> argparse.ArgumentParser:
     lb.add_argument("--time-limit", type=float, default=900.0,
                     help="wall-clock seconds per episode before it is recorded as failed (default: 900)")
     lb.add_argument("--show", metavar="RESULTS_DIR", default=None, help="print the table of a results folder and exit")
+    lb.add_argument("--list", action="store_true", help="print the suite's episode ids, one per line, and exit")
     lb.add_argument("--quiet", action="store_true", help="no progress bar")
     lb.set_defaults(func=_leaderboard)
 

@@ -11,6 +11,8 @@ import math
 
 import numpy as np
 
+from .env import CRASH_CAUSES, END_REASONS
+
 METRIC_NAMES = (
     "success", "collision", "timeout", "flight_time", "path_length_leader", "path_length_mean", "min_clearance",
     "min_separation", "formation_error_rms", "formation_error_max", "time_to_reform", "total_turning",
@@ -99,3 +101,23 @@ def episode_metrics(env, planning_seconds: np.ndarray | None = None, break_thres
         "planning_ms_median": float(np.median(plan)) if plan.size else math.nan,
         "planning_ms_p95": float(np.percentile(plan, 95)) if plan.size else math.nan,
     }
+
+
+def episode_outcome(env) -> tuple[str, str]:
+    """Why the episode ended: (one of ``END_REASONS``, a sentence naming the first crash or the time-out).
+
+    An episode still running (or cut short by the caller) is "running".
+    """
+    reason = END_REASONS[env.end_reason]
+    if reason.startswith("crash"):
+        crashed = np.asarray(env.history["crashed"])  # (T+1, N)
+        step = int(np.flatnonzero(crashed.any(axis=1))[0])
+        uavs = np.flatnonzero(crashed[step])
+        what = ", ".join(f"uav_{i} into {'another UAV' if env.crash_cause[i] == 2 else CRASH_CAUSES[env.crash_cause[i]]}"
+                         for i in uavs)
+        later = int(crashed[-1].sum()) - len(uavs)
+        return reason, f"step {step}: {what}" + (f" ({later} more later)" if later else "")
+    if reason == "timeout":
+        return reason, (f"step limit {env.max_cycles} reached, leader "
+                        f"{float(np.linalg.norm(env.states[0, :3] - env.goal)):.1f} m from the goal")
+    return reason, ""
