@@ -535,7 +535,7 @@ def _draw_team(rng, team: _Team, n_uavs, formation, spacing) -> tuple[int, str, 
     """Size, shape and spacing: the overrides where given, else drawn. Always three draws, so an override
     never shifts the rest of the seed's stream."""
     drawn_n, u_shape, drawn_spacing = (int(rng.integers(team.n_uavs[0], team.n_uavs[1] + 1)), rng.random(),
-                                       rng.uniform(*team.spacing))
+                                       round(rng.uniform(*team.spacing) * 20.0) / 20.0)  # 5 cm steps
     if n_uavs is None:  # a drawn size fits an overridden shape
         cap = MAX_UAVS.get(formation) if isinstance(formation, str) else None
         n_uavs = drawn_n if cap is None else min(drawn_n, cap)
