@@ -301,3 +301,16 @@ def test_disturbance_table_in_a_scenario_file(tmp_path):
         path.write_text(text + f"\n[disturbance]\n{extra}\n")
         with pytest.raises(ScenarioFileError, match="s.toml: " + match):
             Scenario.from_toml(path)
+
+
+def test_fly_names_a_wind_preset(tmp_path, capsys):
+    import json
+
+    from uavform_env.cli import main
+    out = tmp_path / "run"
+    assert main(["fly", "--policy", "hover", "--wind", "gusty", "--max-steps", "3", "--out", str(out), "--quiet"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["wind"] == "gusty" and summary["outcome"] == "timeout" and "step limit 3" in summary["outcome_detail"]
+    with pytest.raises(SystemExit):
+        main(["fly", "--wind", "storm"])
+    assert "invalid choice: 'storm'" in capsys.readouterr().err
