@@ -35,6 +35,7 @@ INFO_KEYS = ("clearance", "separation", "formation_error", "target_distance", "g
 # Success needs every UAV flying: once one crashed, the episode's end reason is that (first) crash.
 CRASH_CAUSES = ("none", "obstacle", "uav", "geofence")
 END_REASONS = ("running", "success", "timeout", "crash-obstacle", "crash-uav", "crash-geofence")
+_OBSTACLE, _UAV, _GEOFENCE = (CRASH_CAUSES.index(c) for c in ("obstacle", "uav", "geofence"))
 
 
 class FormationEnv(ParallelEnv):
@@ -231,7 +232,7 @@ class FormationEnv(ParallelEnv):
         outside = np.any((pos[:, :2] < lo[:2]) | (pos[:, :2] > hi[:2]), axis=1)
         hit_obstacle, hit_uav = clearance < 0.0, separation < 2.0 * cfg.uav.r_uav
         crashed_now = self.active & (hit_obstacle | hit_uav | outside)
-        self.crash_cause[crashed_now] = np.where(hit_obstacle, 1, np.where(outside, 3, 2))[crashed_now]
+        self.crash_cause[crashed_now] = np.where(hit_obstacle, _OBSTACLE, np.where(outside, _GEOFENCE, _UAV))[crashed_now]
         first_crash = crashed_now.any() and not self.crashed.any()
         self.crashed |= crashed_now
         self.active &= ~crashed_now
@@ -254,9 +255,11 @@ class FormationEnv(ParallelEnv):
         ended = self.success or not self.active[0] or not self.active.any()
         truncated = (not ended) and self.step_count >= self.max_cycles
         if first_crash:
-            self._first_crash = 2 + int(self.crash_cause[np.flatnonzero(crashed_now)[0]])
+            cause = CRASH_CAUSES[self.crash_cause[np.flatnonzero(crashed_now)[0]]]
+            self._first_crash = END_REASONS.index(f"crash-{cause}")
         if ended or truncated:
-            self.end_reason = self._first_crash if self.crashed.any() else (1 if self.success else 2)
+            self.end_reason = self._first_crash if self.crashed.any() else \
+                END_REASONS.index("success" if self.success else "timeout")
         live = list(self.agents)
         obs = self._observe()
         infos = self._infos(clearance, separation, ferr, target_dist, truncated=truncated)

@@ -113,8 +113,9 @@ def episode_outcome(env) -> tuple[str, str]:
         crashed = np.asarray(env.history["crashed"])  # (T+1, N)
         step = int(np.flatnonzero(crashed.any(axis=1))[0])
         uavs = np.flatnonzero(crashed[step])
-        what = ", ".join(f"uav_{i} into {'another UAV' if env.crash_cause[i] == 2 else CRASH_CAUSES[env.crash_cause[i]]}"
-                         for i in uavs)
+        into = {"uav": "another UAV"}
+        what = ", ".join(f"uav_{i} into {into.get(CRASH_CAUSES[c], CRASH_CAUSES[c])}"
+                         for i, c in zip(uavs, env.crash_cause[uavs]))
         later = int(crashed[-1].sum()) - len(uavs)
         return reason, f"step {step}: {what}" + (f" ({later} more later)" if later else "")
     if reason == "timeout":

@@ -302,7 +302,7 @@ class _Layout:
     bounds_lo: tuple[float, float, float]
     bounds_hi: tuple[float, float, float]
     keep_out: np.ndarray  # (m, 2) start and goal slots; obstacle footprints stay _ZONE_RADIUS away
-    field: tuple[float, float]  # x-range between the start zone and the goal zone, free for structures
+    field: tuple[float, float]  # x-range between the start and goal zones, free for structures (layouts along +x)
 
 
 def _layout(rng, n_uavs: int, formation: str, spacing: float, min_field: float = 0.0, goal_x: float = _GOAL_X,
