@@ -314,3 +314,10 @@ def test_fly_names_a_wind_preset(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["fly", "--wind", "storm"])
     assert "invalid choice: 'storm'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name", sorted(set(OPEN + STRUCTURED + ["classic-2d"])))
+def test_version_2_toml_round_trip(name, tmp_path):
+    scn = newest(name, 7)
+    scn.to_toml(tmp_path / "s.toml")
+    assert Scenario.from_toml(tmp_path / "s.toml") == scn and scn.version == (1 if name == "dog-leg" else 2)
