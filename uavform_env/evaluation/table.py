@@ -51,7 +51,10 @@ def bootstrap_ci(values: np.ndarray, n_boot: int = N_BOOT, seed: int = BOOT_SEED
 
 
 # Why an episode ended: the env's END_REASONS minus "running", then the runner's failures.
-OUTCOMES = ("success", "timeout", "crash-obstacle", "crash-uav", "crash-geofence", "crash", "failed", "time_limit")
+# Records written before outcomes were kept get "crash" (what was hit is unknown) or "success-with-crash" (their
+# success counted although a UAV had crashed: the rule before issue 12).
+OUTCOMES = ("success", "timeout", "crash-obstacle", "crash-uav", "crash-geofence", "crash", "success-with-crash",
+            "failed", "time_limit")
 
 
 def episode_values(record: dict) -> dict:
@@ -63,14 +66,15 @@ def episode_values(record: dict) -> dict:
 
 
 def episode_outcome(record: dict) -> str:
-    """One of ``OUTCOMES``; records written before outcomes were recorded get theirs from the metrics
-    ("crash" when what was hit is unknown)."""
+    """One of ``OUTCOMES``; records written before outcomes were recorded get theirs from the metrics."""
     if "outcome" in record:
         return record["outcome"]
     if record["status"] != "ok":
         return record["status"]
     m = record["metrics"]
-    return "success" if m.get("success") else ("crash" if m.get("collision") else "timeout")
+    if m.get("collision"):
+        return "success-with-crash" if m.get("success") else "crash"
+    return "success" if m.get("success") else "timeout"
 
 
 def _episode_score(values: dict) -> tuple:
@@ -199,7 +203,8 @@ def to_markdown(summary: dict) -> str:
     names = " | ".join(f"`{r['policy']}`" for r in rows)
     head = [f"| {{}} | {names} |", "|" + "---|" * (len(rows) + 1)]
     lines += ["", "## Why episodes ended", "", "Episodes per outcome (crash-*: the first crash and what it hit; "
-              "crash: a record written before outcomes were kept; failed / time_limit: the policy raised or ran "
+              "crash, success-with-crash: records written before outcomes were kept, the second counted as a success "
+              "under the old rule although a UAV had crashed; failed / time_limit: the policy raised or ran "
               "past its wall-clock limit). Each record in results.jsonl holds the detail, and the policy's "
               "own diagnostics where it exposes them.", "", head[0].format("outcome"), head[1]]
     seen = [o for o in OUTCOMES if any(o in r["outcomes"] for r in rows)]
