@@ -482,6 +482,7 @@ def test_every_failed_episode_says_why(tiny, serial_run):
     assert all("step limit 15 reached" in r["outcome_detail"] for r in records if r["policy"] == "hover")
     boom = by[(EXPLODING, tiny.episodes[0].key)]
     assert boom["outcome"] == "failed" and "boom inside the policy" in boom["outcome_detail"]
+    write_tables(tiny, records, out)
     failures = (out / "failures.csv").read_text().splitlines()
     assert failures[0] == "policy,episode,outcome,detail,diagnostics" and len(failures) == 1 + len(records)
     text = (out / "leaderboard.md").read_text()
