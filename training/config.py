@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from uavform_env.config import _check_choice, _check_int, _check_range, _Config
-from uavform_env.scenarios import list_scenarios
+from uavform_env.config import _check_int, _check_range, _Config
+from uavform_env.scenarios import make_scenario
 
 from .residual import ResidualConfig
 
@@ -54,7 +54,10 @@ class TrainConfig(_Config):
 
     def __post_init__(self):
         name = "TrainConfig"
-        _check_choice(name, "scenario", self.scenario, tuple(list_scenarios()))
+        try:  # a registered name, or one pinned to a version ("forest@1": the world of runs rw1-rw4)
+            make_scenario(self.scenario, 0)
+        except ValueError as e:
+            raise ValueError(f"{name}.scenario={self.scenario!r}: {e}") from None
         _check_int(name, "n_uavs", self.n_uavs, 1, 20)
         _check_int(name, "max_cycles", self.max_cycles, 10)
         _check_int(name, "timesteps", self.timesteps, 1)
