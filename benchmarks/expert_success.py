@@ -15,7 +15,7 @@ import time
 
 from uavform_env.parallel import imap_unordered
 
-SCENARIOS = ("forest", "corridor", "urban", "wall-gap", "random-3d", "classic-2d")
+SCENARIOS = ("forest@1", "corridor@1", "urban@1", "wall-gap@1", "random-3d@1", "classic-2d@1")  # the tuned-on worlds
 
 
 def fly(scenario: str, seed: int, n: int | None, max_steps: int, policy_name: str):

@@ -150,7 +150,7 @@ def test_an_error_in_a_subprocess_is_one_line_without_traceback(tmp_path):
 def test_quiet_prints_one_outcome_line_and_a_single_uav_has_no_formation_metrics(tmp_path, capsys):
     assert fly(tmp_path, "--policy", "hover", "--n-uavs", "1", "--max-steps", "5", "--quiet") == 0
     out = capsys.readouterr().out
-    assert out.count("\n") == 1 and out.startswith("TIME-OUT: hover on forest, 1 UAV (wedge), seed 0, 5 steps")
+    assert out.count("\n") == 1 and out.startswith("TIME-OUT: hover on forest, 1 UAV (") and ", seed 0, 5 steps" in out
     assert "nan" not in out and out.rstrip().endswith("from the goal: the step limit (5 steps) ran out")
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["outcome"] == "time-out" and summary["code_version"] == code_version()
@@ -184,7 +184,7 @@ def test_export_is_commented_sized_and_round_trips(tmp_path, capsys):
     out = tmp_path / "mine.toml"
     assert main(["scenarios", "--export", "forest", "--seed", "3", "--n-uavs", "3", "--formation", "line",
                  "--out", str(out)]) == 0
-    assert capsys.readouterr().out.startswith(f"wrote {out}: forest@1 seed 3, 3 UAVs (line), ")
+    assert capsys.readouterr().out.startswith(f"wrote {out}: forest@2 seed 3, 3 UAVs (line), ")
     text = out.read_text()
     for phrase in ("# Units: lengths and positions in metres", "[mission]", "# number of UAVs", "box:", "cylinder:"):
         assert phrase in text
@@ -233,21 +233,29 @@ def test_the_compile_notice_is_printed_once_while_kernels_are_cold(tmp_path, mon
 
 
 # ----------------------------------------------------------------------------- why a flight ended
-def _ended(positions, clearance=None, crashed=None, ferr=None, success=False, max_cycles=1000):
-    """A stand-in for a finished env: the attributes flight_outcome reads, goal at (40, 0, 3)."""
+def _ended(positions, crashed=None, cause=None, ferr=None, success=False, max_cycles=1000):
+    """A stand-in for a finished env: the attributes episode_outcome reads, goal at (40, 0, 3); ``cause``
+    is each UAV's crash cause (a name of CRASH_CAUSES)."""
     from types import SimpleNamespace
 
     from uavform_env.config import EnvConfig
+    from uavform_env.env import CRASH_CAUSES, END_REASONS
 
     pos = np.asarray(positions, dtype=float)
     steps, n = pos.shape[:2]
-    history = {"positions": list(pos),
-               "clearance": list(np.full((steps, n), 5.0) if clearance is None else clearance),
-               "crashed": list(np.zeros((steps, n), bool) if crashed is None else crashed),
+    crashed = np.zeros((steps, n), bool) if crashed is None else crashed
+    causes = np.array([CRASH_CAUSES.index(c) for c in (cause or ["none"] * n)])
+    if success:
+        end = "success"
+    elif crashed.any():
+        end = f"crash-{CRASH_CAUSES[causes[np.flatnonzero(crashed[np.flatnonzero(crashed.any(axis=1))[0]])[0]]]}"
+    else:
+        end = "timeout" if steps - 1 >= max_cycles else "running"
+    history = {"positions": list(pos), "crashed": list(crashed),
                "formation_error": list(np.zeros((steps, n)) if ferr is None else ferr)}
-    scenario = SimpleNamespace(bounds_lo=(0.0, -10.0, 0.0), bounds_hi=(50.0, 10.0, 10.0))
     return SimpleNamespace(config=EnvConfig(), history=history, goal=np.array([40.0, 0.0, 3.0]), success=success,
-                           scenario=scenario, step_count=steps - 1, max_cycles=max_cycles)
+                           n_uavs=n, crash_cause=causes, end_reason=END_REASONS.index(end), step_count=steps - 1,
+                           max_cycles=max_cycles)
 
 
 def test_flight_outcome_names_the_reason():
@@ -266,18 +274,16 @@ def test_flight_outcome_names_the_reason():
     pair = np.stack([line[:, 0], line[:, 0] + [0.0, 2.0, 0.0]], axis=1)                      # leader + follower 1
     crashed = np.zeros((400, 2), bool)
     crashed[250:, 1] = True
-    clearance = np.full((400, 2), 3.0)
-    clearance[250, 1] = -0.1
-    assert flight_outcome(_ended(pair, clearance, crashed))["reason"] == \
+    assert flight_outcome(_ended(pair, crashed, ["none", "obstacle"]))["reason"] == \
         "uav_1 (follower 1) crashed into an obstacle at step 250 (t = 25.0 s)"
     pair[250:, 1] = pair[250:, 0] + [0.2, 0.0, 0.0]
-    assert flight_outcome(_ended(pair, None, crashed))["reason"].startswith("uav_1 (follower 1) crashed into uav_0 "
-                                                                            "(leader) at step 250")
+    assert flight_outcome(_ended(pair, crashed, ["none", "uav"]))["reason"].startswith(
+        "uav_1 (follower 1) crashed into uav_0 (leader) at step 250")
     pair[250:, 1] = [20.0, -11.0, 3.0]
-    assert "crashed into the edge of the world (left its x/y bounds)" in flight_outcome(_ended(pair, None, crashed))[
-        "reason"]
+    assert "crashed into the edge of the world (left its x/y bounds)" in flight_outcome(
+        _ended(pair, crashed, ["none", "geofence"]))["reason"]
     ferr = np.zeros((400, 2))
     ferr[-1, 1] = 3.5
     blocked = flight_outcome(_ended(np.stack([line[:, 0]] * 2, axis=1), ferr=ferr, max_cycles=399))
-    assert blocked["reason"] == "the leader reached the goal but follower 1 ended 3.5 m from its slot (e_f = 0.5 m): " \
+    assert blocked["reason"] == "the leader reached the goal but uav_1 (follower 1) ended 3.5 m from its slot (e_f = 0.5 m): " \
                                 "its slot may be blocked"

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from uavform_env import EnvConfig, parallel_env
+from uavform_env.config import DisturbanceConfig
 from uavform_env.scenarios import Mission, Scenario
 from uavform_env.world import Box, Cylinder
 
@@ -201,7 +202,7 @@ def test_config_errors_name_the_field():
 
 def test_wind_changes_motion_but_not_the_map_layout():
     calm = parallel_env(**small_env_kwargs())
-    windy = parallel_env(**small_env_kwargs(), config=EnvConfig(episode=EnvConfig().episode.replace(wind_std=0.5)))
+    windy = parallel_env(**small_env_kwargs(), config=EnvConfig(disturbance=DisturbanceConfig(wind_std=0.5)))
     calm.reset(seed=4)
     windy.reset(seed=4)
     assert calm.unwrapped.scenario == windy.unwrapped.scenario

@@ -8,16 +8,17 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from uavform_env import EnvConfig, parallel_env
-from uavform_env.config import EpisodeConfig, MapConfig, ObservationConfig, SensorConfig, UAVLimits
+from uavform_env.config import DisturbanceConfig, EpisodeConfig, MapConfig, ObservationConfig, SensorConfig, UAVLimits
 
 from .test_env_behaviour import open_field
 
 FIELDS = {
     UAVLimits: ["dt", "v_max", "w_max", "a_max", "dw_max", "vz_max", "r_uav", "z_min", "z_max"],
-    SensorConfig: ["n_azimuth", "n_elevation", "r_max", "noise_std"],
+    SensorConfig: ["n_azimuth", "n_elevation", "r_max"],
     MapConfig: ["resolution", "p_hit", "p_miss", "p_min", "p_max"],
     ObservationConfig: ["k_neighbours", "histogram_cell_deg", "histogram_radius"],
-    EpisodeConfig: ["max_cycles", "r_goal", "wind_std"],
+    EpisodeConfig: ["max_cycles", "r_goal"],
+    DisturbanceConfig: ["wind_std", "wind_tau", "wind_mean", "range_noise_std", "ray_dropout"],
 }
 CASES = [(cls, name) for cls, names in FIELDS.items() for name in names]
 weird = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-10 ** 6, 10 ** 6), st.text(max_size=3),

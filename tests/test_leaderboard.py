@@ -103,7 +103,7 @@ def test_v0_covers_every_family_tier_and_team_size():
     suite = load_suite("v0")
     assert set(list_suites()) >= {"v0", "smoke"}
     families = {e.scenario.partition("@")[0] for e in suite.episodes}
-    assert families == set(list_scenarios())
+    assert families == set(list_scenarios()) - {"dog-leg"}  # every family v0 knew (dog-leg came with v1)
     tiers = {(e.scenario.partition("@")[0], e.difficulty) for e in suite.episodes if e.difficulty}
     assert tiers == {("classic-2d", "base"), ("classic-2d", "extended"), ("random-3d", "easy"),
                      ("random-3d", "medium"), ("random-3d", "hard")}
@@ -116,6 +116,8 @@ def test_shipped_suites_are_frozen():
     """Editing a shipped suite changes its hash and breaks comparability: add a new suite instead."""
     assert load_suite("v0").hash == "f3db7bca6c122b55"
     assert load_suite("smoke").hash == "5e32a4eab4e90db9"
+    assert load_suite("v1").hash == "81b10a899152bcfe"
+    assert load_suite("v1-dev").hash == "528344c98875e71e"
 
 
 def test_hash_covers_episodes_only(tmp_path, tiny):
@@ -152,7 +154,7 @@ def test_duplicate_episodes_and_unknown_suite(tmp_path):
     path.write_text(TINY_SUITE + "[[episode]]" + first[2])
     with pytest.raises(ValueError, match="duplicate episodes"):
         load_suite(path)
-    with pytest.raises(ValueError, match=r"unknown suite 'v9'; known suites: \['smoke', 'v0'\]"):
+    with pytest.raises(ValueError, match=r"unknown suite 'v9'; known suites: \['smoke', 'v0', 'v1', 'v1-dev'\]"):
         load_suite("v9")
 
 
@@ -368,3 +370,122 @@ def test_cli_show_and_errors(tiny, serial_run, capsys):
     assert "unknown suite 'v9'" in capsys.readouterr().err
     assert main(["leaderboard", "--show", str(out / "nowhere")]) == 2
     assert "suite.json is missing" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- suite v1, outcomes, probability of improvement
+
+def test_v1_and_v1_dev_share_the_recipe_with_disjoint_seeds():
+    from uavform_env.config import DISTURBANCE_PRESETS
+    from uavform_env.evaluation.suite_v1 import SPLITS, shipped_path, suite_toml
+
+    test, dev, v0 = load_suite("v1"), load_suite("v1-dev"), load_suite("v0")
+    for suite in (test, dev):
+        assert len(suite.episodes) >= 300
+        assert suite_toml(suite.name) == shipped_path(suite.name).read_text(encoding="utf-8")  # the recipe's output
+        assert {e.family for e in suite.episodes} == set(list_scenarios())
+        assert {e.wind for e in suite.episodes} == set(DISTURBANCE_PRESETS)
+        assert all(e.scenario.endswith("@2") or e.scenario == "dog-leg@1" for e in suite.episodes)
+        assert {e.task for e in suite.episodes} >= {"random-3d-easy", "random-3d-hard", "dog-leg-hard",
+                                                    "classic-2d-extended"}
+        sizes = {e.n_uavs for e in suite.episodes}
+        assert min(sizes) == 1 and max(sizes) == 10 and len(sizes) == 10
+        assert {e.formation for e in suite.episodes} == {"wedge", "diamond", "triangle", "line", "column"}
+    strip = [{k: v for k, v in e.to_dict().items() if k not in ("seed", "n_uavs", "formation", "spacing")}
+             for e in test.episodes]
+    assert strip == [{k: v for k, v in e.to_dict().items() if k not in ("seed", "n_uavs", "formation", "spacing")}
+                     for e in dev.episodes]
+    seeds = [{e.seed for e in s.episodes} for s in (test, dev, v0)]
+    assert not (seeds[0] & seeds[1]) and not (seeds[0] & seeds[2]) and not (seeds[1] & seeds[2])
+    assert len(seeds[0]) == len(test.episodes) and set(SPLITS) == {"v1", "v1-dev"}
+
+
+def test_list_prints_one_episode_id_per_line(capsys):
+    assert main(["leaderboard", "--suite", "v1-dev", "--list"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines == [e.key for e in load_suite("v1-dev").episodes] and len(set(lines)) == len(lines)
+    assert main(["leaderboard", "--suite", "v7", "--list"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "unknown suite 'v7'" in err
+
+
+@pytest.mark.parametrize("edit, message", [
+    (('max_cycles = 15\n"""', 'max_cycles = 15\ndisturbance = "storm"\n"""'), "unknown disturbance preset 'storm'"),
+    (('max_cycles = 15\n"""', 'max_cycles = 15\nspacing = "wide"\n"""'), "spacing='wide'"),
+])
+def test_bad_disturbance_or_spacing_in_a_suite(tmp_path, edit, message):
+    path = tmp_path / "bad.toml"
+    path.write_text((TINY_SUITE + '"""').replace(*edit)[:-3])
+    with pytest.raises(ValueError, match="episode 1") as info:
+        load_suite(path)
+    assert message in str(info.value)
+
+
+def test_disturbed_episode_keys_and_env(tmp_path):
+    path = tmp_path / "w.toml"
+    path.write_text(TINY_SUITE.replace("max_cycles = 15\n", "max_cycles = 15\nspacing = 2.5\ndisturbance = \"gusty\"\n")
+                    .replace("scenario = \"classic-2d@1\"\ndifficulty = \"base\"\nn_uavs = 1\nformation = \"wedge\""
+                             "\nseed = 0\nmax_cycles = 15\nspacing = 2.5\ndisturbance = \"gusty\"\n",
+                             "scenario = \"classic-2d@1\"\ndifficulty = \"base\"\nn_uavs = 1\nformation = \"wedge\""
+                             "\nseed = 0\nmax_cycles = 15\n"))
+    suite = load_suite(path)
+    first, second = suite.episodes
+    assert first.key == "classic-2d@1/base/n1/wedge/s0/c15" and first.wind == "calm" and "spacing" not in first.to_dict()
+    assert second.key == "forest@1/-/n2/column/s3/c15/sp2.5/gusty" and second.wind == "gusty"
+    env = uavform_env.parallel_env(**second.env_kwargs())
+    assert env.config.disturbance.wind_std == 1.0 and env.config.formation.spacing == 2.5
+
+
+def test_probability_of_improvement_known_answers():
+    from uavform_env.evaluation.table import probability_of_improvement
+
+    def ep(success, collision=0.0, ferr=1.0, time=10.0):
+        return {"success": success, "collision": collision, "formation_error_rms": ferr, "flight_time": time}
+
+    good, bad = [ep(1.0)] * 8, [ep(0.0, 1.0)] * 8
+    assert probability_of_improvement(good, bad) == (1.0, 1.0, 1.0)
+    assert probability_of_improvement(bad, good) == (0.0, 0.0, 0.0)
+    assert probability_of_improvement(good, good) == (0.5, 0.5, 0.5)
+    # wins 1, 0, 1/2 (a tie), 1: mean 0.625; the score is lexicographic (success, then collision, then ...)
+    x = [ep(1.0), ep(0.0, 1.0), ep(0.0, 0.0, 2.0), ep(0.0, 0.0, 0.5)]
+    y = [ep(0.0), ep(0.0, 0.0), ep(0.0, 0.0, 2.0), ep(0.0, 0.0, 1.0)]
+    p, lo, hi = probability_of_improvement(x, y)
+    assert p == 0.625 and 0.0 <= lo <= p <= hi <= 1.0
+    q, qlo, qhi = probability_of_improvement(y, x)
+    assert p + q == 1.0 and lo + qhi == pytest.approx(1.0) and hi + qlo == pytest.approx(1.0)
+    assert all(math.isnan(v) for v in probability_of_improvement([], []))
+
+
+def test_records_written_before_a_metric_or_outcome_existed_stay_readable(tiny, serial_run):
+    out, records = serial_run
+    old = []
+    for r in records:
+        r = {k: v for k, v in r.items() if k not in ("outcome", "outcome_detail", "diagnostics")}
+        if r["metrics"] is not None:
+            r["metrics"] = {k: v for k, v in r["metrics"].items() if k not in ("planning_ms_p95", "time_to_reform")}
+        old.append(r)
+    summary = summarize(tiny, old)
+    text = to_markdown(summary)
+    row = next(r for r in summary["policies"] if r["policy"] == "hover")
+    assert row["metrics"]["planning_ms_p95"]["recorded"] == 0 and "| planning_ms_p95 (ms) | absent" in text
+    assert row["outcomes"] == {"timeout": 2}
+    assert next(r for r in summary["policies"] if r["policy"] == EXPLODING)["outcomes"] == {"failed": 2}
+    from uavform_env.evaluation.table import episode_outcome
+    before = {"status": "ok", "metrics": {"success": 1.0, "collision": 1.0}}
+    assert episode_outcome(before) == "success-with-crash"
+    assert episode_outcome({"status": "ok", "metrics": {"success": 0.0, "collision": 1.0}}) == "crash"
+
+
+def test_every_failed_episode_says_why(tiny, serial_run):
+    out, records = serial_run
+    by = {(r["policy"], r["episode"]): r for r in records}
+    assert {r["outcome"] for r in records if r["policy"] == "hover"} == {"timeout"}
+    assert all("the step limit (15 steps) ran out" in r["outcome_detail"] for r in records if r["policy"] == "hover")
+    boom = by[(EXPLODING, tiny.episodes[0].key)]
+    assert boom["outcome"] == "failed" and "boom inside the policy" in boom["outcome_detail"]
+    write_tables(tiny, records, out)
+    failures = (out / "failures.csv").read_text().splitlines()
+    assert failures[0] == "policy,episode,outcome,detail,diagnostics" and len(failures) == 1 + len(records)
+    text = (out / "leaderboard.md").read_text()
+    assert "## Why episodes ended" in text and "| timeout | 2 |" in text
+    assert "## Success and collision rate per family" in text and "| calm |" in text
+    assert "## Probability of improvement" in text

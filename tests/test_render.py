@@ -43,7 +43,7 @@ def stand_in_env(n=3, obstacles=FOREST):
                                mission=mission)
     env = SimpleNamespace(world=SimpleNamespace(**obstacles), scenario=scenario, config=EnvConfig(), offsets=offsets,
                           goal=np.array(mission.goal), n_uavs=n, states=states, crashed=np.zeros(n, bool),
-                          step_count=0, success=False, metadata={"render_fps": 10})
+                          step_count=0, success=False, metadata={"render_fps": 10}, slot_altitude="z_ref")
     env.history = {"positions": [states[:, :3].copy()], "crashed": [env.crashed.copy()],
                    "formation_error": [np.zeros(n)]}
     return env

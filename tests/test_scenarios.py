@@ -20,7 +20,8 @@ from uavform_env.world import Box, Cylinder, Sphere
 LIMITS = UAVLimits()
 Z_REF = 3.0
 R_CLEAR = LIMITS.r_uav + LIMITS.r_safe
-NAMES = ["classic-2d", "corridor", "forest", "random-3d", "urban", "wall-gap"]
+NAMES = ["classic-2d", "corridor", "forest", "random-3d", "urban", "wall-gap"]  # the version-1 families
+# These tests pin version 1 (start near x = 3, goal near x = 37, at z_ref); tests/test_world_v1.py covers version 2.
 LEVEL_PASSABLE = ["classic-2d", "corridor", "forest", "random-3d", "urban"]  # wall-gap is built to block z_ref
 EXAMPLES = sorted((Path(__file__).parents[1] / "examples" / "scenarios").glob("*.toml"))
 
@@ -66,13 +67,13 @@ def variant(name, seed):
 # ---------------------------------------------------------------- registry and generators
 
 def test_registry_names():
-    assert list_scenarios() == NAMES
+    assert list_scenarios() == sorted(NAMES + ["dog-leg"])
 
 
 @pytest.mark.parametrize("name", NAMES)
 def test_every_scenario_builds_validates_and_is_feasible(name):
     for seed in range(10):
-        scn = make_scenario(name, seed, **variant(name, seed))
+        scn = make_scenario(f"{name}@1", seed, **variant(name, seed))
         world = scn.build_world()
         assert world.occupied.any()
         validate_scenario(scn, LIMITS, Z_REF)
@@ -85,7 +86,7 @@ def test_every_scenario_builds_validates_and_is_feasible(name):
 def test_footprints_leave_every_gap_passable(name):
     """The construction behind feasibility: inflated footprints never touch, so the free space stays connected."""
     for seed in range(10):
-        obs = make_scenario(name, seed, **variant(name, seed)).obstacles
+        obs = make_scenario(f"{name}@1", seed, **variant(name, seed)).obstacles
         gaps = [footprint_gap(a, b) for i, a in enumerate(obs) for b in obs[i + 1:]]
         assert min(gaps) >= 2 * R_CLEAR + 0.5, f"{name} seed {seed}"
 
@@ -100,7 +101,7 @@ def test_footprints_leave_every_gap_passable(name):
 ])
 def test_overrides_shape_the_clear_zones(name, overrides):
     for seed in range(3):
-        scn = make_scenario(name, seed, **overrides)
+        scn = make_scenario(f"{name}@1", seed, **overrides)
         m = scn.mission
         for key in ("n_uavs", "formation", "spacing"):
             if key in overrides:
@@ -110,49 +111,50 @@ def test_overrides_shape_the_clear_zones(name, overrides):
 
 
 def test_defaults():
-    classic = make_scenario("classic-2d")
+    classic = make_scenario("classic-2d@1")
     m = classic.mission
     assert (m.n_uavs, m.start, m.goal) == (1, (0.0, 0.0, 3.0), (10.0, 10.0, 3.0))
     assert m.start_heading == pytest.approx(math.pi / 2)
     for name in NAMES[1:]:
-        m = make_scenario(name, 4).mission
+        m = make_scenario(f"{name}@1", 4).mission
         assert (m.n_uavs, m.formation, m.spacing) == (5, "wedge", 2.0)
         assert m.start[0] == 3.0 and m.goal[0] == 37.0 and m.start[2] == m.goal[2] == Z_REF
-        assert make_scenario(name, 4).resolution == 0.2
+        assert make_scenario(f"{name}@1", 4).resolution == 0.2
 
 
 @pytest.mark.parametrize("name", NAMES)
 def test_deterministic_and_versioned(name):
-    a = make_scenario(name, 3)
-    assert a == make_scenario(name, 3) == make_scenario(f"{name}@1", 3)
+    a = make_scenario(f"{name}@1", 3)
+    assert a == make_scenario(f"{name}@1", 3)
     assert (a.name, a.version, a.seed) == (name, 1, 3)
+    assert make_scenario(name, 3) == make_scenario(f"{name}@2", 3) != a  # the newest version is the default
     if name != "classic-2d":
-        assert make_scenario(name, 4) != a
+        assert make_scenario(f"{name}@1", 4) != a
 
 
 def test_unknown_names_and_bad_arguments():
-    with pytest.raises(ValueError, match="unknown scenario 'meadow'.*classic-2d, corridor, forest"):
+    with pytest.raises(ValueError, match="unknown scenario 'meadow'.*classic-2d, corridor, dog-leg, forest"):
         make_scenario("meadow")
-    with pytest.raises(ValueError, match=r"no version '9'.*\[1\]"):
+    with pytest.raises(ValueError, match=r"no version '9'.*\[1, 2\]"):
         make_scenario("forest@9")
     with pytest.raises(ValueError, match="no version 'x'"):
         load_scenario("forest@x")
     with pytest.raises(ValueError, match="difficulty='hard' for scenario 'forest'.*no difficulty"):
-        make_scenario("forest", difficulty="hard")
+        make_scenario("forest@1", difficulty="hard")
     with pytest.raises(ValueError, match=r"difficulty='insane'.*\['easy', 'medium', 'hard'\]"):
-        make_scenario("random-3d", difficulty="insane")
+        make_scenario("random-3d@1", difficulty="insane")
     with pytest.raises(ValueError, match="at most 4"):
-        make_scenario("forest", n_uavs=5, formation="diamond")
+        make_scenario("forest@1", n_uavs=5, formation="diamond")
     with pytest.raises(ValueError, match="Mission.formation"):
-        make_scenario("forest", formation="blob")
+        make_scenario("forest@1", formation="blob")
     with pytest.raises(ValueError, match="Mission.spacing"):
-        make_scenario("urban", spacing=-1.0)
+        make_scenario("urban@1", spacing=-1.0)
     with pytest.raises(ValueError, match="seed"):
-        make_scenario("forest", seed=-1)
+        make_scenario("forest@1", seed=-1)
 
 
 def test_classic_map():
-    base, ext = make_scenario("classic-2d"), make_scenario("classic-2d", difficulty="extended")
+    base, ext = make_scenario("classic-2d@1"), make_scenario("classic-2d@1", difficulty="extended")
     centres = [(c.x, c.y) for c in base.obstacles]
     assert centres == [(0, 2), (4, 2), (4, 4), (5, 4), (5, 5), (5, 6), (5, 9), (8, 8), (8, 9), (7, 9)]
     assert [(c.x, c.y) for c in ext.obstacles[10:]] == [(6, 5), (6, 3), (6, 8), (6, 7), (7, 4), (9, 8), (9, 11), (9, 6)]
@@ -164,17 +166,17 @@ def test_classic_map():
 def test_forest_and_urban_mix_low_and_tall_obstacles():
     for name in ("forest", "urban"):
         tops = np.array([ob.z_hi if isinstance(ob, Cylinder) else ob.hi[2]
-                         for seed in range(10) for ob in make_scenario(name, seed).obstacles])
+                         for seed in range(10) for ob in make_scenario(f"{name}@1", seed).obstacles])
         low = tops <= LIMITS.z_max - 2 * R_CLEAR  # a UAV passes over these inside the altitude band
         assert 0.15 < low.mean() < 0.5 and np.all(low | (tops > LIMITS.z_max)), name
-    radii = [ob.radius for ob in make_scenario("forest").obstacles]
+    radii = [ob.radius for ob in make_scenario("forest@1").obstacles]
     assert 0.3 <= min(radii) and max(radii) <= 0.8 and len(radii) >= 40
 
 
 def test_wall_gap_blocks_level_flight_only():
     sides = set()
     for seed in range(10):
-        scn = make_scenario("wall-gap", seed)
+        scn = make_scenario("wall-gap@1", seed)
         lower, upper = scn.obstacles
         gap_lo, gap_hi = lower.hi[2], upper.lo[2]
         assert gap_hi - gap_lo >= 2.0 and LIMITS.z_min <= gap_lo and gap_hi <= LIMITS.z_max
@@ -187,7 +189,7 @@ def test_wall_gap_blocks_level_flight_only():
 def test_corridor_is_narrower_than_the_formation_and_unavoidable():
     width = np.ptp(slot_offsets("wedge", 5, 2.0)[:, 1])
     for seed in range(10):
-        scn = make_scenario("corridor", seed)
+        scn = make_scenario("corridor@1", seed)
         south, north = scn.obstacles
         x = (south.lo[0] + south.hi[0]) / 2
         ys = np.arange(scn.bounds_lo[1], scn.bounds_hi[1], 0.02)
@@ -200,13 +202,13 @@ def test_corridor_is_narrower_than_the_formation_and_unavoidable():
 
 def test_random_3d_difficulty_sets_density():
     def occupancy(level):
-        worlds = [make_scenario("random-3d", s, difficulty=level).build_world() for s in range(3)]
+        worlds = [make_scenario("random-3d@1", s, difficulty=level).build_world() for s in range(3)]
         return np.mean([w.occupied.mean() for w in worlds])
     easy, medium, hard = occupancy("easy"), occupancy("medium"), occupancy("hard")
     assert easy < medium < hard
-    kinds = {type(ob) for ob in make_scenario("random-3d", 0).obstacles}
+    kinds = {type(ob) for ob in make_scenario("random-3d@1", 0).obstacles}
     assert kinds == {Box, Cylinder, Sphere}
-    assert make_scenario("random-3d", 0) == make_scenario("random-3d", 0, difficulty="medium")
+    assert make_scenario("random-3d@1", 0) == make_scenario("random-3d@1", 0, difficulty="medium")
 
 
 # ---------------------------------------------------------------- validation
@@ -252,7 +254,7 @@ def test_validate_uses_the_given_limits_and_altitude():
 
 
 def test_with_mission():
-    scn = make_scenario("forest", 2)
+    scn = make_scenario("forest@1", 2)
     other = scn.with_mission(n_uavs=3, formation="triangle")
     assert other.obstacles == scn.obstacles and other.mission.n_uavs == 3 and scn.mission.n_uavs == 5
     with pytest.raises(ValueError, match="unknown field.*'speed'"):
@@ -265,7 +267,7 @@ def test_with_mission():
 
 @pytest.mark.parametrize("name", NAMES)
 def test_toml_round_trip_of_every_generator(name, tmp_path):
-    scn = make_scenario(name, 7, **variant(name, 7))
+    scn = make_scenario(f"{name}@1", 7, **variant(name, 7))
     scn.to_toml(tmp_path / "s.toml")
     assert Scenario.from_toml(tmp_path / "s.toml") == scn
 
@@ -293,8 +295,8 @@ def test_toml_round_trip_is_exact(tmp_path_factory, obs, seed, start, heading):
 
 def test_to_toml_is_atomic_and_overwrites(tmp_path):
     path = tmp_path / "out" / "s.toml"
-    make_scenario("forest", 0).to_toml(path)
-    second = make_scenario("urban", 1)
+    make_scenario("forest@1", 0).to_toml(path)
+    second = make_scenario("urban@1", 1)
     second.to_toml(path)
     assert Scenario.from_toml(path) == second and os.listdir(path.parent) == ["s.toml"]
 
@@ -373,13 +375,13 @@ def test_malformed_files_name_file_entry_and_problem(tmp_path, old, new, entry, 
 
 def test_load_scenario(tmp_path):
     path = tmp_path / "f.toml"
-    make_scenario("corridor", 5).to_toml(path)
-    assert load_scenario(str(path)) == load_scenario(path) == make_scenario("corridor", 5)
-    assert load_scenario("corridor", 5) == make_scenario("corridor", 5)
-    assert load_scenario("random-3d@1", 2, difficulty="hard") == make_scenario("random-3d", 2, difficulty="hard")
+    make_scenario("corridor@1", 5).to_toml(path)
+    assert load_scenario(str(path)) == load_scenario(path) == make_scenario("corridor@1", 5)
+    assert load_scenario("corridor", 5) == make_scenario("corridor@2", 5)
+    assert load_scenario("random-3d@1", 2, difficulty="hard") == make_scenario("random-3d@1", 2, difficulty="hard")
     small = load_scenario(path, n_uavs=3, formation="triangle")
     assert (small.mission.n_uavs, small.mission.formation) == (3, "triangle")
-    assert small.obstacles == make_scenario("corridor", 5).obstacles
+    assert small.obstacles == make_scenario("corridor@1", 5).obstacles
     with pytest.raises(ValueError, match="difficulty.*fixed world"):
         load_scenario(path, difficulty="hard")
     with pytest.raises(FileNotFoundError):

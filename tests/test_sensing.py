@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from uavform_env.config import SensorConfig
-from uavform_env.sensing import NOTHING, STATIC, UAV, RangeSensor
+from uavform_env.sensing import NOTHING, STATIC, UAV, RangeSensor, perturb_scan
 
 RES = 0.2
 LEVEL = SensorConfig(n_azimuth=4, n_elevation=1, r_max=8.0, interleave=False)  # rays +x, +y, -x, -y
@@ -83,12 +83,12 @@ def test_other_uavs_are_spheres_and_a_uav_never_sees_itself():
 def test_noise_only_on_hits_and_from_the_given_generator():
     occ = np.zeros((30, 20, 10), np.uint8)
     occ[15, :, :] = 1
-    sensor = RangeSensor(LEVEL.replace(noise_std=0.05))
     pos = np.array([[1.1, 2.1, 1.1], [1.1, 0.5, 1.1]])
-    args = (occ, (0, 0, 0), RES, pos, np.zeros(2), 0, 0.3)
-    a = sensor.scan(*args, rng=np.random.default_rng(7))
-    b = sensor.scan(*args, rng=np.random.default_rng(7))
-    clean = RangeSensor(LEVEL).scan(*args)
+    clean = RangeSensor(LEVEL).scan(occ, (0, 0, 0), RES, pos, np.zeros(2), 0, 0.3)
+    before = clean.ranges.copy()
+    a = perturb_scan(clean, pos, LEVEL.r_max, 0.05, 0.0, np.random.default_rng(7), None)
+    b = perturb_scan(clean, pos, LEVEL.r_max, 0.05, 0.0, np.random.default_rng(7), None)
+    np.testing.assert_array_equal(clean.ranges, before)  # the input scan is untouched
     np.testing.assert_array_equal(a.ranges, b.ranges)
     np.testing.assert_array_equal(a.kind, clean.kind)
     hits = clean.kind != NOTHING
@@ -96,8 +96,26 @@ def test_noise_only_on_hits_and_from_the_given_generator():
     np.testing.assert_array_equal(a.ranges[~hits], clean.ranges[~hits])
     moved = (a.ranges - clean.ranges)[..., None] * a.directions
     np.testing.assert_allclose(a.endpoints, clean.endpoints + moved, atol=1e-12)
-    with pytest.raises(ValueError, match="rng"):
-        sensor.scan(*args)
+    with pytest.raises(ValueError, match="noise_rng"):
+        perturb_scan(clean, pos, LEVEL.r_max, 0.05, 0.0, None, None)
+
+
+def test_dropped_rays_read_as_no_return_from_their_own_generator():
+    occ = np.zeros((30, 20, 10), np.uint8)
+    occ[15, :, :] = 1
+    pos = np.array([[1.1, 2.1, 1.1], [1.1, 0.5, 1.1]])
+    clean = RangeSensor(LEVEL).scan(occ, (0, 0, 0), RES, pos, np.zeros(2), 0, 0.3)
+    dropped = perturb_scan(clean, pos, LEVEL.r_max, 0.0, 0.5, None, np.random.default_rng(1))
+    lost = np.random.default_rng(1).random(clean.ranges.shape) < 0.5
+    assert 0 < lost.sum() < lost.size
+    assert np.all(dropped.kind[lost] == NOTHING) and np.all(dropped.ranges[lost] == LEVEL.r_max)
+    np.testing.assert_allclose(dropped.endpoints[lost], (pos[:, None, :] + clean.directions * LEVEL.r_max)[lost])
+    np.testing.assert_array_equal(dropped.ranges[~lost], clean.ranges[~lost])
+    # both faults: the dropout pattern does not depend on whether noise is on (separate generators)
+    both = perturb_scan(clean, pos, LEVEL.r_max, 0.05, 0.5, np.random.default_rng(2), np.random.default_rng(1))
+    np.testing.assert_array_equal(both.kind, dropped.kind)
+    with pytest.raises(ValueError, match="dropout_rng"):
+        perturb_scan(clean, pos, LEVEL.r_max, 0.0, 0.5, None, None)
 
 
 def test_batch_equals_one_uav_at_a_time():

@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from uavform_env.cli import MAX_UAVS
-from uavform_env.config import _check_choice, _check_int, _check_range, _Config
-from uavform_env.scenarios import list_scenarios
+from uavform_env.config import _check_int, _check_range, _Config
+from uavform_env.scenarios import make_scenario
 
 from .residual import ResidualConfig
 
@@ -69,7 +69,10 @@ class TrainConfig(_Config):
 
     def __post_init__(self):
         name = "TrainConfig"
-        _check_choice(name, "scenario", self.scenario, tuple(list_scenarios()))
+        try:  # a registered name, or one pinned to a version ("forest@1": the world of runs rw1-rw4)
+            make_scenario(self.scenario, 0)
+        except ValueError as e:
+            raise ValueError(f"{name}.scenario={self.scenario!r}: {e}") from None
         for field, (lo, hi) in INT_BOUNDS.items():
             _check_int(name, field, getattr(self, field), lo, hi)
         for field, (lo, hi, lo_open) in FLOAT_BOUNDS.items():

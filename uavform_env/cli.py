@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import FORMATION_SHAPES, EnvConfig
+from .config import DISTURBANCE_PRESETS, FORMATION_SHAPES, EnvConfig
 from .policies import available_policies
 
 COMMAND_GROUP = "uavform.commands"
@@ -38,8 +38,7 @@ METRIC_UNITS = {"flight_time": "s", "path_length_leader": "m", "path_length_mean
                 "min_separation": "m", "formation_error_rms": "m", "formation_error_max": "m", "time_to_reform": "s",
                 "total_turning": "rad", "total_turning_mean": "rad", "altitude_deviation_max": "m",
                 "planning_ms_median": "ms", "planning_ms_p95": "ms", "goal_distance": "m"}
-STUCK_SECONDS = 30.0   # a time-out is "stuck" when the leader moved less than STUCK_DISTANCE in this last stretch
-STUCK_DISTANCE = 1.0
+_OUTCOMES = {"success": "success", "timeout": "time-out"}  # END_REASONS -> the summary's outcome (crash-*: crash)
 
 
 def int_in(lo: int, hi: int | None = None):
@@ -97,55 +96,18 @@ def _check_out_folder(out: str) -> Path:
 
 
 def flight_outcome(env) -> dict:
-    """Why the episode the env just played ended: outcome, reason, final goal distance (leader to goal, m).
+    """Why the episode the env just played ended (``metrics.episode_outcome``), for the summary: outcome
+    (``success``, ``crash``, ``time-out`` or ``ended``), the reason in words, and the final goal distance
+    (leader to goal, m)."""
+    from .metrics import episode_outcome
 
-    Computed from what the env exposes (``success``, ``crashed``, ``history``, ``step_count`` vs
-    ``max_cycles``): outcome is ``success``, ``crash`` (the first UAV to crash, and into what: an
-    obstacle, another UAV, or out of the world's x/y bounds), ``time-out`` (with ``stuck`` when the
-    leader moved less than STUCK_DISTANCE in the last STUCK_SECONDS) or ``ended`` (stopped early).
-    """
-    cfg = env.config
-    pos = np.asarray(env.history["positions"], dtype=np.float64)        # (T+1, N, 3)
-    crashed = np.asarray(env.history["crashed"], dtype=bool)
-    clearance = np.asarray(env.history["clearance"], dtype=np.float64)
-    goal_distance = float(np.linalg.norm(pos[-1, 0] - np.asarray(env.goal)))
-    dt = cfg.uav.dt
-    names = ["leader" if i == 0 else f"follower {i}" for i in range(pos.shape[1])]
-    if env.success:
-        return {"outcome": "success", "reason": f"the leader is within r_goal = {cfg.episode.r_goal:g} m of the goal "
-                "and every live follower within e_f of its slot", "goal_distance": goal_distance}
-    if crashed[-1].any():
-        step = int(np.argmax(crashed.any(axis=1)))
-        i = int(np.flatnonzero(crashed[step])[0])
-        p = pos[step]
-        gaps = np.linalg.norm(p - p[i], axis=1)
-        gaps[i] = np.inf
-        j = int(np.argmin(gaps))
-        lo, hi = np.asarray(env.scenario.bounds_lo), np.asarray(env.scenario.bounds_hi)
-        if clearance[step, i] < 0:
-            what = "an obstacle"
-        elif gaps[j] < 2 * cfg.uav.r_uav:
-            what = f"uav_{j} ({names[j]})"
-        elif np.any((p[i, :2] < lo[:2]) | (p[i, :2] > hi[:2])):
-            what = "the edge of the world (left its x/y bounds)"
-        else:
-            what = "something"
-        return {"outcome": "crash", "reason": f"uav_{i} ({names[i]}) crashed into {what} at step {step} "
-                f"(t = {step * dt:.1f} s)", "goal_distance": goal_distance}
-    if env.step_count >= env.max_cycles:
-        window = max(1, round(STUCK_SECONDS / dt))
-        moved = float(np.linalg.norm(pos[-1, 0] - pos[-1 - window, 0])) if len(pos) > window else math.inf
-        ferr = np.asarray(env.history["formation_error"], dtype=np.float64)[-1]
-        if goal_distance < cfg.episode.r_goal and len(ferr) > 1:
-            k = int(np.argmax(ferr[1:])) + 1
-            reason = (f"the leader reached the goal but {names[k]} ended {ferr[k]:.1f} m from its slot "
-                      f"(e_f = {cfg.formation.e_f:g} m): its slot may be blocked")
-        elif moved < STUCK_DISTANCE:
-            reason = f"stuck: the leader moved {moved:.2f} m in the last {STUCK_SECONDS:g} s"
-        else:
-            reason = f"the step limit ({env.max_cycles} steps) ran out"
-        return {"outcome": "time-out", "reason": reason, "goal_distance": goal_distance}
-    return {"outcome": "ended", "reason": "no UAV could fly on", "goal_distance": goal_distance}
+    reason, detail = episode_outcome(env)
+    outcome = "crash" if reason.startswith("crash") else _OUTCOMES.get(reason, "ended")
+    if outcome == "success":
+        detail = (f"the leader is within r_goal = {env.config.episode.r_goal:g} m of the goal, every follower "
+                  "within e_f of its slot, and no UAV crashed")
+    return {"outcome": outcome, "reason": detail or "no UAV could fly on",
+            "goal_distance": float(np.linalg.norm(np.asarray(env.history["positions"][-1][0]) - env.goal))}
 
 
 def _preflight_fly(args):
@@ -164,7 +126,8 @@ def _preflight_fly(args):
         flag = "--difficulty" if "difficulty" in str(e).split(":")[0] else "--scenario"
         raise _flag(flag, args.difficulty if flag == "--difficulty" else args.scenario, e) from None
     kwargs = dict(scenario=args.scenario, n_uavs=args.n_uavs, formation=args.formation, difficulty=args.difficulty,
-                  render_mode="rgb_array" if args.video else None, top_down=args.top_down, max_cycles=args.max_steps)
+                  render_mode="rgb_array" if args.video else None, top_down=args.top_down, max_cycles=args.max_steps,
+                  disturbance=args.wind)
     penv = parallel_env(**{k: v for k, v in kwargs.items() if v is not None})
     try:
         policy = load_policy(args.policy)
@@ -201,9 +164,9 @@ def _fly(args) -> int:
     env = penv.unwrapped
     picture = out / f"trajectory.{args.format}"
     summary = {"scenario": args.scenario, "policy": args.policy, "seed": args.seed, "n_uavs": env.n_uavs,
-               "formation": env.config.formation.shape, "steps": env.step_count, "max_steps": env.max_cycles,
-               **flight_outcome(env), **{k: v for k, v in metrics.items() if not math.isnan(v)},
-               "code_version": code_version()}
+               "formation": env.config.formation.shape, "wind": args.wind or "calm", "steps": env.step_count,
+               "max_steps": env.max_cycles, **flight_outcome(env),
+               **{k: v for k, v in metrics.items() if not math.isnan(v)}, "code_version": code_version()}
     summary["units"] = {k: u for k, u in METRIC_UNITS.items() if k in summary}
     atomic_write_json(out / "summary.json", summary)
     plot_episode(env, picture, title=f"{args.policy} on {args.scenario} (seed {args.seed})")
@@ -280,8 +243,12 @@ def _leaderboard(args) -> int:
         suite = suite_from_manifest(manifest, f"{args.show}/suite.json")
         print(to_markdown(summarize(suite, read_results(args.show))), end="")
         return 0
+    if args.list:
+        for episode in load_suite(args.suite).episodes:
+            print(episode.key)
+        return 0
     if not args.policy:
-        raise ValueError("give at least one --policy (or --show RESULTS_DIR)")
+        raise ValueError("give at least one --policy (or --show RESULTS_DIR, or --list)")
     suite = load_suite(args.suite)
     print(f"suite {suite.name}: {len(suite.episodes)} episodes, hash {suite.hash}", flush=True)
     try:
@@ -343,6 +310,8 @@ def build_parser() -> argparse.ArgumentParser:
                           "(default base); other scenarios have none")
     fly.add_argument("--seed", type=int_in(0), default=0,
                      help="episode seed, an integer >= 0: the obstacle layout and sensor noise (default: 0)")
+    fly.add_argument("--wind", default=None, choices=list(DISTURBANCE_PRESETS),
+                     help="disturbance preset (README, Disturbances; default: the scenario file's, else calm)")
     fly.add_argument("--max-steps", type=int_in(1), default=None, metavar="STEPS",
                      help=f"step limit of the episode, >= 1 (one step = {_DEFAULTS.uav.dt:g} s; "
                           f"default: {_DEFAULTS.episode.max_cycles})")
@@ -387,6 +356,7 @@ def build_parser() -> argparse.ArgumentParser:
     lb.add_argument("--time-limit", type=number_in(0.0, None, lo_open=True), default=900.0,
                     help="wall-clock seconds per episode before it is recorded as failed (default: 900)")
     lb.add_argument("--show", metavar="RESULTS_DIR", default=None, help="print the table of a results folder and exit")
+    lb.add_argument("--list", action="store_true", help="print the suite's episode ids, one per line, and exit")
     lb.add_argument("--quiet", action="store_true", help="no progress bar")
     lb.set_defaults(func=_leaderboard)
 

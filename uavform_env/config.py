@@ -9,9 +9,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields, replace
+from types import MappingProxyType
 from typing import Any
 
 FORMATION_SHAPES = ("wedge", "diamond", "triangle", "line", "column")
+# Where follower slots sit in altitude: at FormationConfig.z_ref (version-1 missions) or at the leader's altitude.
+SLOT_ALTITUDES = ("z_ref", "leader")
 PRIOR_MAPS = ("none", "heightmap")
 
 
@@ -134,7 +137,6 @@ class SensorConfig(_Config):
     elevation_min: float = math.radians(-42.0)
     elevation_max: float = math.radians(42.0)
     r_max: float = 6.0
-    noise_std: float = 0.0
     interleave: bool = True
 
     def __post_init__(self):
@@ -147,7 +149,6 @@ class SensorConfig(_Config):
             raise ValueError(f"{o}.elevation_min={self.elevation_min!r} must not exceed "
                              f"{o}.elevation_max={self.elevation_max!r}")
         _check_range(o, "r_max", self.r_max, 0.0, 100.0, lo_open=True)
-        _check_range(o, "noise_std", self.noise_std, 0.0, 10.0)
 
     @property
     def n_rays(self) -> int:
@@ -247,15 +248,13 @@ class ObservationConfig(_Config):
 
 @dataclass(frozen=True)
 class EpisodeConfig(_Config):
-    """Episode rules: length, goal radius, crash handling, prior knowledge and disturbances."""
+    """Episode rules: length, goal radius, crash handling and prior knowledge."""
 
     max_cycles: int = 3000
     r_goal: float = 0.5
     remove_crashed: bool = False
     prior_map: str = "none"
     prior_resolution: float = 0.5
-    wind_std: float = 0.0
-    wind_tau: float = 2.0
 
     def __post_init__(self):
         o = "EpisodeConfig"
@@ -265,8 +264,58 @@ class EpisodeConfig(_Config):
             raise ValueError(f"{o}.remove_crashed={self.remove_crashed!r}: expected a bool")
         _check_choice(o, "prior_map", self.prior_map, PRIOR_MAPS)
         _check_range(o, "prior_resolution", self.prior_resolution, 0.05, 10.0)
+
+
+@dataclass(frozen=True)
+class DisturbanceConfig(_Config):
+    """Wind on the airframe and faults of the range sensor (README, "Disturbances").
+
+    Wind: Ornstein-Uhlenbeck gusts of ``wind_std`` m/s per axis (vertical scaled by 0.3) with
+    correlation time ``wind_tau`` s, plus the steady ``wind_mean`` (x, y) m/s, pushing every flying
+    UAV's position (``FormationEnv._apply_wind``). Sensor: every range that hit something gets Gaussian
+    noise of ``range_noise_std`` m, and each ray is lost with probability ``ray_dropout`` (it then reads
+    as no return: free space up to r_max, as a lidar's lost echo does) (``sensing.perturb_scan``).
+    Named presets: ``DISTURBANCE_PRESETS``.
+    """
+
+    wind_std: float = 0.0
+    wind_tau: float = 2.0
+    wind_mean: tuple[float, float] = (0.0, 0.0)
+    range_noise_std: float = 0.0
+    ray_dropout: float = 0.0
+
+    def __post_init__(self):
+        o = "DisturbanceConfig"
         _check_range(o, "wind_std", self.wind_std, 0.0, 10.0)
         _check_range(o, "wind_tau", self.wind_tau, 0.0, None, lo_open=True)
+        mean = self.wind_mean
+        if not isinstance(mean, (tuple, list)) or len(mean) != 2:
+            raise ValueError(f"{o}.wind_mean={mean!r}: expected two numbers (x, y) in m/s")
+        for axis, value in zip("xy", mean):
+            _check_range(o, f"wind_mean.{axis}", value, -10.0, 10.0)
+        object.__setattr__(self, "wind_mean", (float(mean[0]), float(mean[1])))
+        _check_range(o, "range_noise_std", self.range_noise_std, 0.0, 10.0)
+        _check_range(o, "ray_dropout", self.ray_dropout, 0.0, 1.0, hi_open=True)
+
+    @property
+    def windy(self) -> bool:
+        return self.wind_std > 0.0 or self.wind_mean != (0.0, 0.0)
+
+
+# Named disturbances (README, "Disturbances"); a suite, a scenario file and `uavform fly --wind` name them.
+DISTURBANCE_PRESETS = MappingProxyType({
+    "calm": DisturbanceConfig(),
+    "breeze": DisturbanceConfig(wind_std=0.3),
+    "gusty": DisturbanceConfig(wind_std=1.0, wind_mean=(0.3, 0.0)),
+    "noisy": DisturbanceConfig(range_noise_std=0.05, ray_dropout=0.1),
+})
+
+
+def disturbance_preset(name) -> DisturbanceConfig:
+    """The named preset; an unknown name raises a ValueError listing the known ones."""
+    if not isinstance(name, str) or name not in DISTURBANCE_PRESETS:
+        raise ValueError(f"unknown disturbance preset {name!r}; known presets: {', '.join(DISTURBANCE_PRESETS)}")
+    return DISTURBANCE_PRESETS[name]
 
 
 @dataclass(frozen=True)
@@ -280,11 +329,12 @@ class EnvConfig(_Config):
     reward: RewardConfig = field(default_factory=RewardConfig)
     observation: ObservationConfig = field(default_factory=ObservationConfig)
     episode: EpisodeConfig = field(default_factory=EpisodeConfig)
+    disturbance: DisturbanceConfig = field(default_factory=DisturbanceConfig)
 
     def __post_init__(self):
         expected = {"uav": UAVLimits, "sensor": SensorConfig, "map": MapConfig,
                     "formation": FormationConfig, "reward": RewardConfig,
-                    "observation": ObservationConfig, "episode": EpisodeConfig}
+                    "observation": ObservationConfig, "episode": EpisodeConfig, "disturbance": DisturbanceConfig}
         for name, cls in expected.items():
             if not isinstance(getattr(self, name), cls):
                 raise ValueError(f"EnvConfig.{name}: expected a {cls.__name__}, got {type(getattr(self, name)).__name__}")

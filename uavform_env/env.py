@@ -18,20 +18,25 @@ from pettingzoo import ParallelEnv
 
 from . import dynamics
 from .actions import check_actions
-from .config import EnvConfig
+from .config import DisturbanceConfig, EnvConfig, disturbance_preset
 from .dynamics import PSI, STATE_DIM, V, VZ, W
-from .formation import formation_errors, slot_offsets, slot_positions
+from .formation import formation_errors, formation_slots, slot_offsets
 from .kernels import compile_notice
 from .observations import ObservationLayout, build_observations
 from .occupancy import OccupancyMap
 from .onboard import OnboardView, PriorMap
 from .rewards import compute_rewards
-from .scenarios import Scenario, load_scenario, make_scenario, validate_scenario
-from .sensing import RangeSensor
+from .scenarios import Scenario, ScenarioFileError, load_scenario, make_scenario, validate_scenario
+from .sensing import RangeSensor, perturb_scan
 from .world import _read_only, grid_frame
 
 INFO_KEYS = ("clearance", "separation", "formation_error", "target_distance", "goal_distance", "speed",
-             "altitude", "crashed", "success", "step", "TimeLimit.truncated")
+             "altitude", "crashed", "crash_cause", "success", "end_reason", "step", "TimeLimit.truncated")
+# Integer codes of the infos "crash_cause" (per UAV) and "end_reason" (the episode's, 0 while it runs).
+# Success needs every UAV flying: once one crashed, the episode's end reason is that (first) crash.
+CRASH_CAUSES = ("none", "obstacle", "uav", "geofence")
+END_REASONS = ("running", "success", "timeout", "crash-obstacle", "crash-uav", "crash-geofence")
+_OBSTACLE, _UAV, _GEOFENCE = (CRASH_CAUSES.index(c) for c in ("obstacle", "uav", "geofence"))
 
 
 class FormationEnv(ParallelEnv):
@@ -40,13 +45,18 @@ class FormationEnv(ParallelEnv):
     Args:
         scenario: a registered scenario name (``uavform_env.scenarios.list_scenarios()``), a path to a
             scenario TOML file, or a ``Scenario``.
-        n_uavs, formation, spacing, difficulty: override the scenario's mission.
+        n_uavs, formation, spacing, difficulty: override the scenario's mission. The team (size, shape,
+            spacing) stays fixed for the env's life: what is not overridden comes from the scenario
+            generated with seed 0 (version-2 generators draw it from the seed).
         max_cycles: episode length in steps (overrides ``config.episode.max_cycles``).
         render_mode: ``None``, ``"rgb_array"`` (headless) or ``"human"``.
         remove_crashed: remove crashed UAVs from ``agents`` instead of freezing them.
         config: an ``EnvConfig``; its fields are documented in ``uavform_env.config``.
         layout_seed: fix the obstacle layout of a generated scenario (default: the reset seed).
         top_down: render the top view instead of the 3D view.
+        disturbance: wind and sensor faults, a preset name (``config.DISTURBANCE_PRESETS``) or a
+            ``DisturbanceConfig``; default: the scenario file's ``[disturbance]`` if it has one, else
+            ``config.disturbance``.
     """
 
     metadata = {"name": "formation_v0", "render_modes": ["human", "rgb_array"], "render_fps": 10,
@@ -55,7 +65,8 @@ class FormationEnv(ParallelEnv):
     def __init__(self, scenario: str | Path | Scenario = "forest", n_uavs: int | None = None,
                  formation: str | None = None, spacing: float | None = None, difficulty: str | None = None,
                  max_cycles: int | None = None, render_mode: str | None = None, remove_crashed: bool | None = None,
-                 config: EnvConfig | None = None, layout_seed: int | None = None, top_down: bool = False):
+                 config: EnvConfig | None = None, layout_seed: int | None = None, top_down: bool = False,
+                 disturbance: str | DisturbanceConfig | None = None):
         cfg = config if config is not None else EnvConfig()
         if not isinstance(cfg, EnvConfig):
             raise ValueError(f"config: expected an EnvConfig, got {type(cfg).__name__}")
@@ -77,7 +88,23 @@ class FormationEnv(ParallelEnv):
             str(scenario).endswith(".toml") else None
         first = self._scenario_for(0)
         mission = first.mission
+        if self._fixed_scenario is None:  # the team is fixed for the env's life: version-2 generators draw it
+            self._overrides = {"n_uavs": mission.n_uavs, "formation": mission.formation, "spacing": mission.spacing}
         cfg = cfg.replace(formation=cfg.formation.replace(shape=mission.formation, spacing=mission.spacing))
+        if isinstance(disturbance, str):
+            disturbance = disturbance_preset(disturbance)
+        elif disturbance is None:
+            disturbance = first.disturbance
+        elif not isinstance(disturbance, DisturbanceConfig):
+            raise ValueError(f"disturbance: expected a preset name or a DisturbanceConfig, "
+                             f"got {type(disturbance).__name__}")
+        if disturbance is not None:
+            cfg = cfg.replace(disturbance=disturbance)
+        if self._source is not None:
+            try:  # a file's mistakes are reported now, naming the file
+                validate_scenario(first, cfg.uav, cfg.formation.z_ref, source=self._source)
+            except ValueError as e:
+                raise ScenarioFileError(str(e)) from None
         self.config = cfg
         self.max_cycles = cfg.episode.max_cycles
         self.n_uavs = mission.n_uavs
@@ -131,9 +158,10 @@ class FormationEnv(ParallelEnv):
         elif self._episode_seeds is not None:   # Gymnasium's convention: unseeded resets continue the seeded stream
             seed = int(self._episode_seeds.integers(2**63))
         root = np.random.SeedSequence(seed)
-        sensor_ss, wind_ss = root.spawn(2)
-        self._sensor_rng = np.random.default_rng(sensor_ss)
+        noise_ss, wind_ss, dropout_ss = root.spawn(3)  # one stream per disturbance: each leaves the others as they are
+        self._noise_rng = np.random.default_rng(noise_ss)
         self._wind_rng = np.random.default_rng(wind_ss)
+        self._dropout_rng = np.random.default_rng(dropout_ss)
         layout_seed = self.layout_seed if self.layout_seed is not None else (
             seed if seed is not None else int(root.generate_state(1)[0]))
         scn = self._scenario_for(layout_seed)
@@ -145,16 +173,20 @@ class FormationEnv(ParallelEnv):
             self._prior = self._build_prior()
         m = scn.mission
         self.goal = np.asarray(m.goal, dtype=np.float64)
+        self.slot_altitude = m.slot_altitude
 
         n = self.n_uavs
         self.states = np.zeros((n, STATE_DIM))
-        self.states[:, :3] = slot_positions(np.asarray(m.start[:2]), m.start_heading, self.offsets, cfg.formation.z_ref)
+        self.states[:, :3] = formation_slots(np.asarray(m.start), m.start_heading, self.offsets, cfg.formation.z_ref,
+                                             m.slot_altitude)
         self.states[0, 2] = m.start[2]
         self.states[:, PSI] = m.start_heading
         self.broadcast = self.states.copy()
         self.active = np.ones(n, bool)
         self.present = np.ones(n, bool)
         self.crashed = np.zeros(n, bool)
+        self.crash_cause = np.zeros(n, np.int64)  # index into CRASH_CAUSES
+        self.end_reason = self._first_crash = 0  # indices into END_REASONS
         self.prev_actions = np.zeros((n, 3), np.float32)
         self.wind = np.zeros((n, 3))
         self.step_count = 0
@@ -203,7 +235,10 @@ class FormationEnv(ParallelEnv):
         lo, hi = np.asarray(self.scenario.bounds_lo), np.asarray(self.scenario.bounds_hi)
         pos = self.states[:, :3]
         outside = np.any((pos[:, :2] < lo[:2]) | (pos[:, :2] > hi[:2]), axis=1)
-        crashed_now = self.active & ((clearance < 0.0) | (separation < 2.0 * cfg.uav.r_uav) | outside)
+        hit_obstacle, hit_uav = clearance < 0.0, separation < 2.0 * cfg.uav.r_uav
+        crashed_now = self.active & (hit_obstacle | hit_uav | outside)
+        self.crash_cause[crashed_now] = np.where(hit_obstacle, _OBSTACLE, np.where(outside, _GEOFENCE, _UAV))[crashed_now]
+        first_crash = crashed_now.any() and not self.crashed.any()
         self.crashed |= crashed_now
         self.active &= ~crashed_now
         self.states[crashed_now, V] = self.states[crashed_now, W] = self.states[crashed_now, VZ] = 0.0
@@ -213,7 +248,7 @@ class FormationEnv(ParallelEnv):
         ferr = formation_errors(self.states[:, :3], slots)
         leader_ok = self.active[0] and np.linalg.norm(self.states[0, :3] - self.goal) < cfg.episode.r_goal
         followers_ok = np.all(ferr[1:][self.active[1:]] < cfg.formation.e_f)
-        self.success = bool(leader_ok and followers_ok)
+        self.success = bool(leader_ok and followers_ok and not self.crashed.any())
 
         target_dist = self._target_distances(slots)
         is_follower = np.arange(self.n_uavs) > 0
@@ -224,6 +259,12 @@ class FormationEnv(ParallelEnv):
 
         ended = self.success or not self.active[0] or not self.active.any()
         truncated = (not ended) and self.step_count >= self.max_cycles
+        if first_crash:
+            cause = CRASH_CAUSES[self.crash_cause[np.flatnonzero(crashed_now)[0]]]
+            self._first_crash = END_REASONS.index(f"crash-{cause}")
+        if ended or truncated:
+            self.end_reason = self._first_crash if self.crashed.any() else \
+                END_REASONS.index("success" if self.success else "timeout")
         live = list(self.agents)
         obs = self._observe()
         infos = self._infos(clearance, separation, ferr, target_dist, truncated=truncated)
@@ -251,22 +292,28 @@ class FormationEnv(ParallelEnv):
         return acts
 
     def _apply_wind(self):
-        ep, dt = self.config.episode, self.config.uav.dt
-        if ep.wind_std <= 0:
+        d, dt = self.config.disturbance, self.config.uav.dt
+        if not d.windy:
             return
-        # Ornstein-Uhlenbeck gusts (m/s), integrated as a position disturbance.
-        decay = math.exp(-dt / ep.wind_tau)
-        noise = self._wind_rng.standard_normal(self.wind.shape) * ep.wind_std * math.sqrt(1.0 - decay ** 2)
-        self.wind = self.wind * decay + noise
-        self.wind[:, 2] *= 0.3
-        self.states[self.active, :3] += self.wind[self.active] * dt
+        # Ornstein-Uhlenbeck gusts (m/s) plus the steady mean wind, integrated as a position disturbance.
+        if d.wind_std > 0:
+            decay = math.exp(-dt / d.wind_tau)
+            noise = self._wind_rng.standard_normal(self.wind.shape) * d.wind_std * math.sqrt(1.0 - decay ** 2)
+            self.wind = self.wind * decay + noise
+            self.wind[:, 2] *= 0.3
+        air = self.wind + np.array([d.wind_mean[0], d.wind_mean[1], 0.0])
+        self.states[self.active, :3] += air[self.active] * dt
         u = self.config.uav
         np.clip(self.states[:, 2], u.z_min, u.z_max, out=self.states[:, 2])
 
     # ------------------------------------------------------------------ stages
     def _sense(self):
         scan = self.sensor.scan(self.world.occupied, self.world.origin, self.world.res, self.states[:, :3],
-                                self.states[:, PSI], self.step_count, self.config.uav.r_uav, self._sensor_rng)
+                                self.states[:, PSI], self.step_count, self.config.uav.r_uav)
+        d = self.config.disturbance
+        if d.range_noise_std > 0 or d.ray_dropout > 0:
+            scan = perturb_scan(scan, self.states[:, :3], self.config.sensor.r_max, d.range_noise_std, d.ray_dropout,
+                                self._noise_rng, self._dropout_rng)
         for i in np.flatnonzero(self.active):
             self.maps[i].integrate_scan(self.states[i, :3], scan.endpoints[i], scan.kind[i])
         self.last_scan = scan
@@ -282,11 +329,11 @@ class FormationEnv(ParallelEnv):
 
     def _true_slots(self) -> np.ndarray:
         lead = self.states[0]
-        return slot_positions(lead[:2], lead[PSI], self.offsets, self.config.formation.z_ref)
+        return formation_slots(lead[:3], lead[PSI], self.offsets, self.config.formation.z_ref, self.slot_altitude)
 
     def _broadcast_slots(self) -> np.ndarray:
         lead = self.broadcast[0]
-        return slot_positions(lead[:2], lead[PSI], self.offsets, self.config.formation.z_ref)
+        return formation_slots(lead[:3], lead[PSI], self.offsets, self.config.formation.z_ref, self.slot_altitude)
 
     def _target_distances(self, slots) -> np.ndarray:
         targets = slots.copy()
@@ -306,7 +353,8 @@ class FormationEnv(ParallelEnv):
         return {a: {"clearance": float(clearance[i]), "separation": float(separation[i]),
                     "formation_error": float(ferr[i]), "target_distance": float(target_dist[i]),
                     "goal_distance": goal_dist, "speed": float(self.states[i, V]),
-                    "altitude": float(self.states[i, 2]), "crashed": int(self.crashed[i]), "success": success,
+                    "altitude": float(self.states[i, 2]), "crashed": int(self.crashed[i]),
+                    "crash_cause": int(self.crash_cause[i]), "success": success, "end_reason": int(self.end_reason),
                     "step": step, "TimeLimit.truncated": bool(truncated)}
                 for i, a in enumerate(self.possible_agents)}
 
@@ -331,6 +379,7 @@ class FormationEnv(ParallelEnv):
         return OnboardView(
             agent=agent, index=i, is_leader=(i == 0), state=snap.states[i], goal=snap.goal, slot=snap.slots[i],
             slot_offset=snap.offsets[i], offsets=snap.offsets, z_ref=self.config.formation.z_ref,
+            slot_altitude=self.slot_altitude,
             leader_state=snap.broadcast[0] if i else snap.states[0], neighbour_ids=snap.others[i],
             neighbour_states=snap.neighbour_states[i], neighbour_alive=snap.neighbour_alive[i],
             occupancy=snap.maps[i], prior=self._prior, limits=self.config.uav, config=self.config,

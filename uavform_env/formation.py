@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .config import FORMATION_SHAPES
+from .config import FORMATION_SHAPES, SLOT_ALTITUDES
 
 MAX_UAVS = {"wedge": None, "diamond": 4, "triangle": 3, "line": None, "column": None}
 
@@ -49,6 +49,19 @@ def slot_positions(leader_xy: np.ndarray, leader_yaw: float, offsets: np.ndarray
     out[:, 1] = leader_xy[1] + s * offsets[:, 0] + c * offsets[:, 1]
     out[:, 2] = z_ref + offsets[:, 2]
     return out
+
+
+def formation_slots(leader_position, leader_yaw: float, offsets: np.ndarray, z_ref: float,
+                    slot_altitude: str = "z_ref") -> np.ndarray:
+    """World positions (n, 3) of the slots of a leader at ``leader_position`` (x, y, z) with yaw ``leader_yaw``.
+
+    The one place that decides slot altitudes (env, onboard view, observations): ``slot_altitude``
+    "z_ref" puts every slot at z_ref + dz (version-1 missions), "leader" at the leader's altitude + dz.
+    """
+    if slot_altitude not in SLOT_ALTITUDES:
+        raise ValueError(f"slot_altitude={slot_altitude!r}: expected one of {list(SLOT_ALTITUDES)}")
+    z = leader_position[2] if slot_altitude == "leader" else z_ref
+    return slot_positions(leader_position[:2], leader_yaw, offsets, z)
 
 
 def formation_errors(positions: np.ndarray, slots: np.ndarray) -> np.ndarray:

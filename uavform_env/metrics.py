@@ -11,6 +11,8 @@ import math
 
 import numpy as np
 
+from .env import CRASH_CAUSES, END_REASONS
+
 METRIC_NAMES = (
     "success", "collision", "timeout", "flight_time", "path_length_leader", "path_length_mean", "min_clearance",
     "min_separation", "formation_error_rms", "formation_error_max", "time_to_reform", "total_turning",
@@ -99,3 +101,53 @@ def episode_metrics(env, planning_seconds: np.ndarray | None = None, break_thres
         "planning_ms_median": float(np.median(plan)) if plan.size else math.nan,
         "planning_ms_p95": float(np.percentile(plan, 95)) if plan.size else math.nan,
     }
+
+
+# A time-out is "stuck" when the leader moved less than STUCK_DISTANCE (m) in the last STUCK_SECONDS (s).
+STUCK_SECONDS = 30.0
+STUCK_DISTANCE = 1.0
+_CRASHED_INTO = {"obstacle": "an obstacle", "geofence": "the edge of the world (left its x/y bounds)"}
+
+
+def episode_outcome(env) -> tuple[str, str]:
+    """Why the episode ended: (one of ``END_REASONS``, a sentence saying why).
+
+    A crash names the first UAV to crash, what it hit and when; a time-out says whether the leader
+    reached the goal but a follower did not reach its slot, whether the leader was stuck (moved less
+    than STUCK_DISTANCE in the last STUCK_SECONDS), or that the step limit simply ran out. An episode
+    still running (or cut short by the caller) is "running".
+    """
+    reason = END_REASONS[env.end_reason]
+    dt = env.config.uav.dt
+    names = [f"uav_{i} ({'leader' if i == 0 else f'follower {i}'})" for i in range(env.n_uavs)]
+    if reason.startswith("crash"):
+        crashed = np.asarray(env.history["crashed"])  # (T+1, N)
+        step = int(np.flatnonzero(crashed.any(axis=1))[0])
+        first = np.flatnonzero(crashed[step])
+        pos = np.asarray(env.history["positions"][step])
+
+        def into(i):
+            cause = CRASH_CAUSES[env.crash_cause[i]]
+            if cause != "uav":
+                return _CRASHED_INTO[cause]
+            gaps = np.linalg.norm(pos - pos[i], axis=1)
+            gaps[i] = np.inf
+            return names[int(np.argmin(gaps))]
+
+        what = ", ".join(f"{names[i]} crashed into {into(i)}" for i in first)
+        later = int(crashed[-1].sum()) - len(first)
+        return reason, (f"{what} at step {step} (t = {step * dt:.1f} s)"
+                        + (f"; {later} more crashed later" if later else ""))
+    if reason == "timeout":
+        pos = np.asarray(env.history["positions"])[:, 0]  # the leader's track
+        window = max(1, round(STUCK_SECONDS / dt))
+        moved = float(np.linalg.norm(pos[-1] - pos[-1 - window])) if len(pos) > window else math.inf
+        ferr = np.asarray(env.history["formation_error"][-1], dtype=np.float64)
+        if float(np.linalg.norm(pos[-1] - env.goal)) < env.config.episode.r_goal and len(ferr) > 1:
+            k = int(np.argmax(ferr[1:])) + 1
+            return reason, (f"the leader reached the goal but {names[k]} ended {ferr[k]:.1f} m from its slot "
+                            f"(e_f = {env.config.formation.e_f:g} m): its slot may be blocked")
+        if moved < STUCK_DISTANCE:
+            return reason, f"stuck: the leader moved {moved:.2f} m in the last {STUCK_SECONDS:g} s"
+        return reason, f"the step limit ({env.max_cycles} steps) ran out"
+    return reason, ""

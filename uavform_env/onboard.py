@@ -35,6 +35,7 @@ class OnboardView:
     slot_offset: np.ndarray      # own offset in the leader's body frame
     offsets: np.ndarray          # all offsets (N, 3)
     z_ref: float
+    slot_altitude: str           # slots at z_ref + dz ("z_ref") or at the leader's altitude + dz ("leader")
     leader_state: np.ndarray     # leader's broadcast state (its true state for the leader itself)
     neighbour_ids: np.ndarray    # indices of the other UAVs
     neighbour_states: np.ndarray  # their broadcast states (K, 7)

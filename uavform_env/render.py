@@ -23,7 +23,7 @@ from matplotlib.patches import Circle, Patch
 from mpl_toolkits.mplot3d.art3d import Line3D, Line3DCollection, Poly3DCollection
 
 from .files import atomic_write_bytes
-from .formation import slot_positions
+from .formation import formation_slots
 
 RENDER_MODES = ("rgb_array", "human")
 DPI = 100
@@ -284,7 +284,7 @@ class _Scene:
         tips = pos + self.heading_length * np.stack([np.cos(psi), np.sin(psi), np.zeros_like(psi)], axis=1)
         _set_segments(self.headings, pos, tips)
         _set_segments(self.links, np.repeat(pos[:1], self.n - 1, axis=0), pos[1:])
-        slots = slot_positions(pos[0, :2], psi[0], np.asarray(env.offsets), env.config.formation.z_ref)
+        slots = formation_slots(pos[0], psi[0], np.asarray(env.offsets), env.config.formation.z_ref, env.slot_altitude)
         _set_points(self.slots, slots[1:])
         _set_points(self.crashes, pos[np.asarray(env.crashed, bool)])
         t = env.step_count * env.config.uav.dt

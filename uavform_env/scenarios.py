@@ -26,9 +26,10 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-from .config import FORMATION_SHAPES, FormationConfig, MapConfig, UAVLimits
+from .config import (FORMATION_SHAPES, SLOT_ALTITUDES, DisturbanceConfig, FormationConfig, MapConfig, UAVLimits,
+                     disturbance_preset)
 from .files import atomic_write_bytes
-from .formation import slot_offsets, slot_positions
+from .formation import MAX_UAVS, formation_slots, slot_offsets, slot_positions
 from .world import Box, Cylinder, Sphere, World, as_finite, as_finite_vector, as_positive, check_world_bounds
 
 # Generators design for the default vehicle and formation altitude (the config is the one source of truth).
@@ -50,7 +51,12 @@ class ScenarioFileError(ValueError):
 
 @dataclass(frozen=True)
 class Mission:
-    """Fly the leader (UAV 0) from ``start`` to ``goal``; followers start on their formation slots."""
+    """Fly the leader (UAV 0) from ``start`` to ``goal``; followers start on their formation slots.
+
+    ``slot_altitude`` places the followers' slots at FormationConfig.z_ref ("z_ref", version-1
+    missions and files without the key) or at the leader's altitude ("leader", missions whose start
+    and goal lie at other altitudes); see ``formation.formation_slots``.
+    """
 
     start: tuple[float, float, float]
     goal: tuple[float, float, float]
@@ -58,6 +64,7 @@ class Mission:
     formation: str
     spacing: float
     n_uavs: int
+    slot_altitude: str = "z_ref"
 
     def __post_init__(self):
         object.__setattr__(self, "start", as_finite_vector("Mission", "start", self.start, 3))
@@ -69,11 +76,17 @@ class Mission:
         if isinstance(self.n_uavs, bool) or not isinstance(self.n_uavs, (int, np.integer)) or self.n_uavs < 1:
             raise ValueError(f"Mission.n_uavs={self.n_uavs!r}: expected an integer >= 1")
         object.__setattr__(self, "n_uavs", int(self.n_uavs))
+        if self.slot_altitude not in SLOT_ALTITUDES:
+            raise ValueError(f"Mission.slot_altitude={self.slot_altitude!r}: expected one of {list(SLOT_ALTITUDES)}")
 
 
 @dataclass(frozen=True)
 class Scenario:
-    """A world (bounds, voxel resolution, obstacles) and a mission; ``seed`` records the generator's seed."""
+    """A world (bounds, voxel resolution, obstacles) and a mission; ``seed`` records the generator's seed.
+
+    ``disturbance`` is the wind and sensor faults a scenario file asks for (its ``[disturbance]``
+    table); None leaves the env's own (``EnvConfig.disturbance``).
+    """
 
     name: str
     version: int
@@ -83,6 +96,7 @@ class Scenario:
     resolution: float
     obstacles: tuple
     mission: Mission
+    disturbance: DisturbanceConfig | None = None
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name.strip():
@@ -104,6 +118,9 @@ class Scenario:
                 raise ValueError(f"Scenario.obstacles[{i}]={ob!r}: expected a Box, Cylinder or Sphere")
         if not isinstance(self.mission, Mission):
             raise ValueError(f"Scenario.mission: expected a Mission, got {type(self.mission).__name__}")
+        if self.disturbance is not None and not isinstance(self.disturbance, DisturbanceConfig):
+            raise ValueError(f"Scenario.disturbance: expected None or a DisturbanceConfig, "
+                             f"got {type(self.disturbance).__name__}")
 
     def build_world(self) -> World:
         return World(self.bounds_lo, self.bounds_hi, self.resolution, self.obstacles)
@@ -137,7 +154,8 @@ class Scenario:
 # ---------------------------------------------------------------------------------------------- TOML
 
 _OBSTACLE_KEYS = {"box": ("lo", "hi"), "cylinder": ("center", "radius", "z_lo", "z_hi"), "sphere": ("center", "radius")}
-_MISSION_KEYS = tuple(f.name for f in fields(Mission))
+_MISSION_KEYS = tuple(f.name for f in fields(Mission) if f.name != "slot_altitude")
+_DISTURBANCE_KEYS = tuple(f.name for f in fields(DisturbanceConfig))
 
 
 def _obstacle_entry(ob) -> dict:
@@ -151,11 +169,16 @@ def _obstacle_entry(ob) -> dict:
 def _to_document(scn: Scenario) -> dict:
     m = scn.mission
     head = {"name": scn.name, "version": scn.version, **({} if scn.seed is None else {"seed": scn.seed})}
-    return {"scenario": head,
-            "world": {"bounds_lo": list(scn.bounds_lo), "bounds_hi": list(scn.bounds_hi), "resolution": scn.resolution},
-            "obstacles": [_obstacle_entry(ob) for ob in scn.obstacles],
-            "mission": {"start": list(m.start), "goal": list(m.goal), "start_heading": m.start_heading,
-                        "formation": m.formation, "spacing": m.spacing, "n_uavs": m.n_uavs}}
+    mission = {"start": list(m.start), "goal": list(m.goal), "start_heading": m.start_heading,
+               "formation": m.formation, "spacing": m.spacing, "n_uavs": m.n_uavs}
+    if m.slot_altitude != "z_ref":  # files without the key keep version 1's slots at z_ref
+        mission["slot_altitude"] = m.slot_altitude
+    doc = {"scenario": head,
+           "world": {"bounds_lo": list(scn.bounds_lo), "bounds_hi": list(scn.bounds_hi), "resolution": scn.resolution},
+           "obstacles": [_obstacle_entry(ob) for ob in scn.obstacles], "mission": mission}
+    if scn.disturbance is not None:
+        doc["disturbance"] = scn.disturbance.to_dict()
+    return doc
 
 
 # What each table and key of a scenario file means, written as comments by ``commented_toml``.
@@ -168,6 +191,7 @@ _TABLE_NOTES = {
     "scenario": "Where this file came from: informational when loading (the file is always this one world).",
     "world": "The box the UAVs fly in and the voxel size of its occupancy grid.",
     "mission": "The leader (uav_0) flies from start to goal; followers start on their formation slots.",
+    "disturbance": "Wind and range-sensor faults (optional): a `preset` name and/or any field below.",
     "obstacles": "Solid obstacles, one [[obstacles]] table each, of three types:\n"
                  "  box:      lo = [x, y, z] and hi = [x, y, z], opposite corners (m)\n"
                  "  cylinder: center = [x, y], radius, from z_lo up to z_hi (m), vertical\n"
@@ -179,11 +203,15 @@ _KEY_NOTES = {
     "world": {"bounds_lo": "lowest corner [x, y, z] (m); z starts at the ground, 0",
               "bounds_hi": "highest corner [x, y, z] (m); leaving the x/y bounds is a crash",
               "resolution": "voxel edge (m) of the ground-truth grid and the UAVs' maps"},
-    "mission": {"start": "leader's start [x, y, z] (m); followers start at the formation altitude z_ref",
+    "mission": {"start": "leader's start [x, y, z] (m); followers start on their slots (see slot_altitude)",
                 "goal": "leader's goal [x, y, z] (m)", "start_heading": "initial yaw of every UAV (rad, 0 = +x)",
                 "formation": f"formation shape: {' | '.join(FORMATION_SHAPES)}",
                 "spacing": "distance between neighbouring formation slots (m)",
-                "n_uavs": "number of UAVs, uav_0 (the leader) .. uav_{N-1}"},
+                "n_uavs": "number of UAVs, uav_0 (the leader) .. uav_{N-1}",
+                "slot_altitude": "followers' slot altitude: z_ref (fixed) | leader (the leader's altitude)"},
+    "disturbance": {"wind_std": "gust strength, std per axis (m/s)", "wind_tau": "gust correlation time (s)",
+                    "wind_mean": "steady wind [x, y] (m/s)", "range_noise_std": "range noise, std (m)",
+                    "ray_dropout": "probability that a ray returns nothing"},
 }
 
 
@@ -198,7 +226,9 @@ def commented_toml(scn: Scenario) -> str:
     """The scenario file text: the same document ``from_toml`` reads, each table and key with a comment."""
     doc = _to_document(scn)
     lines = _FILE_HEADER.splitlines()
-    for table in ("scenario", "world", "mission"):
+    for table in ("scenario", "world", "mission", "disturbance"):
+        if table not in doc:
+            continue
         lines += ["", *(f"# {line}" for line in _TABLE_NOTES[table].splitlines()), f"[{table}]"]
         width = max(len(f"{k} = {_toml_value(v)}") for k, v in doc[table].items())
         lines += [f"{f'{k} = {_toml_value(v)}':<{width}}  # {_KEY_NOTES[table][k]}" for k, v in doc[table].items()]
@@ -282,10 +312,10 @@ class _Reader:
 
 def _from_document(doc: dict, path: Path) -> Scenario:
     r = _Reader(path)
-    r.keys(doc, "top level", ("scenario", "world", "mission"), ("obstacles",))
+    r.keys(doc, "top level", ("scenario", "world", "mission"), ("obstacles", "disturbance"))
     head = r.keys(doc["scenario"], "[scenario]", ("name", "version"), ("seed",))
     world = r.keys(doc["world"], "[world]", ("bounds_lo", "bounds_hi", "resolution"))
-    mission = r.keys(doc["mission"], "[mission]", _MISSION_KEYS)
+    mission = r.keys(doc["mission"], "[mission]", _MISSION_KEYS, ("slot_altitude",))
     obstacles = doc.get("obstacles", [])
     if not isinstance(obstacles, list):
         r.fail("obstacles", f"expected an array of tables ([[obstacles]]), got {type(obstacles).__name__}")
@@ -297,12 +327,28 @@ def _from_document(doc: dict, path: Path) -> Scenario:
                 start_heading=r.number(mission["start_heading"], "[mission].start_heading"),
                 formation=r.string(mission["formation"], "[mission].formation"),
                 spacing=r.number(mission["spacing"], "[mission].spacing"),
-                n_uavs=r.integer(mission["n_uavs"], "[mission].n_uavs"))
+                n_uavs=r.integer(mission["n_uavs"], "[mission].n_uavs"),
+                slot_altitude=r.string(mission.get("slot_altitude", "z_ref"), "[mission].slot_altitude"))
+    disturbance = _disturbance(r, doc["disturbance"]) if "disturbance" in doc else None
     seed = r.integer(head["seed"], "[scenario].seed") if "seed" in head else None
     return r.build("[scenario]", Scenario, name=r.string(head["name"], "[scenario].name"),
                    version=r.integer(head["version"], "[scenario].version"), seed=seed, bounds_lo=bounds[0],
                    bounds_hi=bounds[1], resolution=bounds[2],
-                   obstacles=tuple(r.obstacle(t, i) for i, t in enumerate(obstacles)), mission=m)
+                   obstacles=tuple(r.obstacle(t, i) for i, t in enumerate(obstacles)), mission=m,
+                   disturbance=disturbance)
+
+
+def _disturbance(r: _Reader, table) -> DisturbanceConfig:
+    """``[disturbance]``: an optional ``preset`` name, then any DisturbanceConfig field overriding it."""
+    r.keys(table, "[disturbance]", (), ("preset",) + _DISTURBANCE_KEYS)
+    base = r.build("[disturbance].preset", disturbance_preset,
+                   r.string(table["preset"], "[disturbance].preset")) if "preset" in table else DisturbanceConfig()
+    changes = {}
+    for key in _DISTURBANCE_KEYS:
+        if key in table:
+            where = f"[disturbance].{key}"
+            changes[key] = (r.vector(table[key], 2, where) if key == "wind_mean" else r.number(table[key], where))
+    return r.build("[disturbance]", base.replace, **changes)
 
 
 # ---------------------------------------------------------------------------------------------- generators
@@ -315,26 +361,28 @@ class _Layout:
     bounds_lo: tuple[float, float, float]
     bounds_hi: tuple[float, float, float]
     keep_out: np.ndarray  # (m, 2) start and goal slots; obstacle footprints stay _ZONE_RADIUS away
-    field: tuple[float, float]  # x-range between the start zone and the goal zone, free for structures
+    field: tuple[float, float]  # x-range between the start and goal zones, free for structures (layouts along +x)
 
 
-def _layout(rng, n_uavs: int, formation: str, spacing: float, min_field: float = 0.0) -> _Layout:
-    """Start near x = 3 and goal near x = 37 (y jittered), the formation facing the goal at both ends;
-    the goal moves further out when the field between the two zones would be shorter than ``min_field``."""
+def _layout(rng, n_uavs: int, formation: str, spacing: float, min_field: float = 0.0, goal_x: float = _GOAL_X,
+            z: tuple[float, float] = (_Z_REF, _Z_REF), slot_altitude: str = "z_ref") -> _Layout:
+    """Start near x = 3 and goal near x = ``goal_x`` (y jittered), the formation facing the goal at both ends;
+    the goal moves further out when the field between the two zones would be shorter than ``min_field``.
+    ``z`` holds the start's and the goal's altitude."""
     offsets = slot_offsets(formation, n_uavs, spacing)
     reach = float(np.hypot(offsets[:, 0], offsets[:, 1]).max())
     start = np.array([_START_X, _FIELD[1] / 2 + rng.uniform(-_Y_JITTER, _Y_JITTER)])
     goal_y = _FIELD[1] / 2 + rng.uniform(-_Y_JITTER, _Y_JITTER)
     start_zone_front = start[0] + reach + _ZONE_RADIUS  # whatever the heading
-    goal = np.array([max(_GOAL_X, start_zone_front + min_field + reach + _ZONE_RADIUS), goal_y])
+    goal = np.array([max(goal_x, start_zone_front + min_field + reach + _ZONE_RADIUS), goal_y])
     heading = math.atan2(goal[1] - start[1], goal[0] - start[0])
     start_slots = slot_positions(start, heading, offsets, _Z_REF)[:, :2]
     goal_slots = slot_positions(goal, heading, offsets, _Z_REF)[:, :2]
     keep_out = np.vstack([start_slots, goal_slots])
     lo = np.floor(np.minimum(0.0, keep_out.min(axis=0) - _ZONE_RADIUS))
     hi = np.ceil(np.maximum(_FIELD, keep_out.max(axis=0) + _ZONE_RADIUS))
-    mission = Mission(start=(start[0], start[1], _Z_REF), goal=(goal[0], goal[1], _Z_REF), start_heading=heading,
-                      formation=formation, spacing=spacing, n_uavs=n_uavs)
+    mission = Mission(start=(start[0], start[1], z[0]), goal=(goal[0], goal[1], z[1]), start_heading=heading,
+                      formation=formation, spacing=spacing, n_uavs=n_uavs, slot_altitude=slot_altitude)
     return _Layout(mission, (lo[0], lo[1], 0.0), (hi[0], hi[1], _CEILING), keep_out,
                    (start_slots[:, 0].max() + _ZONE_RADIUS, goal_slots[:, 0].min() - _ZONE_RADIUS))
 
@@ -410,7 +458,11 @@ _STREET_WIDTH = 3.5  # >= 2 (r_uav + r_safe) + 2 m: every street is a passage
 
 def _urban(rng, n_uavs, formation, spacing, difficulty):
     """Buildings on a block grid with 3.5 m streets; heights vary, about 40 % can be flown over."""
-    layout = _layout(rng, n_uavs, formation, spacing)
+    return _blocks(rng, _layout(rng, n_uavs, formation, spacing))
+
+
+def _blocks(rng, layout: _Layout):
+    """Buildings on a block grid over the layout's bounds, clear of its start and goal zones."""
     lo, hi = np.array(layout.bounds_lo[:2]), np.array(layout.bounds_hi[:2])
     block = rng.uniform(4.0, 6.0)
     pitch = block + _STREET_WIDTH
@@ -439,15 +491,19 @@ _GAP_OFFSET = 0.5  # ... and its near edge lies at least this far beyond z_ref, 
 def _wall_gap(rng, n_uavs, formation, spacing, difficulty):
     """A wall across the whole width, from the ground to the world top except one horizontal gap above or
     below z_ref (the seed picks which): 2D avoidance at z_ref cannot pass, climbing or descending can."""
-    layout = _layout(rng, n_uavs, formation, spacing, min_field=3.0)
+    return _gap_wall(rng, _layout(rng, n_uavs, formation, spacing, min_field=3.0), _Z_REF)
+
+
+def _gap_wall(rng, layout: _Layout, z_level: float):
+    """The wall across the layout's field with one gap above or below ``z_level`` (the seed picks which)."""
     thickness, heights, rise = rng.uniform(0.3, 1.0), rng.uniform(_GAP_MIN_HEIGHT, 3.0, 2), rng.uniform(0.0, 1.0)
-    above_lo = _Z_REF + _GAP_OFFSET + rise
+    above_lo = z_level + _GAP_OFFSET + rise
     above = (above_lo, min(above_lo + heights[0], _LIMITS.z_max))
-    below_hi = _Z_REF - _GAP_OFFSET
+    below_hi = z_level - _GAP_OFFSET
     below = (max(_LIMITS.z_min, below_hi - heights[1]), below_hi)
     options = [g for g in (above, below) if g[1] - g[0] >= _GAP_MIN_HEIGHT]
     if not options:
-        raise ValueError(f"wall-gap: no gap of {_GAP_MIN_HEIGHT} m fits above or below z_ref={_Z_REF} "
+        raise ValueError(f"wall-gap: no gap of {_GAP_MIN_HEIGHT} m fits above or below z={z_level} "
                          f"inside the altitude band [{_LIMITS.z_min}, {_LIMITS.z_max}]")
     gap_lo, gap_hi = options[int(rng.integers(len(options)))]
     x = _middle(rng, layout.field, thickness)
@@ -463,7 +519,11 @@ _CORRIDOR_LENGTH = (10.0, 14.0)
 
 def _corridor(rng, n_uavs, formation, spacing, difficulty):
     """Two walls through the whole world height that fill the width except a straight corridor."""
-    layout = _layout(rng, n_uavs, formation, spacing, min_field=_CORRIDOR_LENGTH[1] + 2.0)
+    return _corridor_walls(rng, _layout(rng, n_uavs, formation, spacing, min_field=_CORRIDOR_LENGTH[1] + 2.0))
+
+
+def _corridor_walls(rng, layout: _Layout):
+    """The two walls of a straight corridor across the layout's field."""
     width, length = rng.uniform(*_CORRIDOR_WIDTH), rng.uniform(*_CORRIDOR_LENGTH)
     x = _middle(rng, layout.field, length)
     y = _FIELD[1] / 2 + rng.uniform(-2.0, 2.0)
@@ -492,6 +552,11 @@ def _random_3d(rng, n_uavs, formation, spacing, difficulty):
     d = _RANDOM_3D[difficulty]
     layout = _layout(rng, n_uavs, formation, spacing)
     centres, radii = _scatter(rng, layout, d.count, d.radius, d.gap)
+    return layout.bounds_lo, layout.bounds_hi, _mixed(rng, centres, radii, d), layout.mission
+
+
+def _mixed(rng, centres: np.ndarray, radii: np.ndarray, d: _Density) -> list:
+    """A box, cylinder or floating sphere on each disc (a box's footprint is inscribed in its disc)."""
     n = len(radii)
     kinds, tops = rng.integers(0, 3, n), _tops(rng, n, d.tall_fraction)
     angles = rng.uniform(math.pi / 8, 3 * math.pi / 8, n)  # box footprint inscribed in its disc
@@ -505,7 +570,193 @@ def _random_3d(rng, n_uavs, formation, spacing, difficulty):
             obstacles.append(Cylinder(x, y, r, 0.0, top))
         else:
             obstacles.append(Sphere(x, y, z, r))
+    return obstacles
+
+
+# ---------------------------------------------------------------------------------------------- version 2
+# Missions in every direction and at every altitude: start and goal altitudes drawn from _MISSION_Z, the
+# followers' slots at the leader's altitude, formation size, shape and spacing from the family's _Team.
+_MISSION_Z = (1.5, 7.5)  # inside the band [z_min, z_max] with room for the low tops and the world top
+_OPEN_FIELD = 30.0  # square field of the open families (forest, urban, random-3d) ...
+_OPEN_DISTANCE = (18.0, 24.0)  # ... crossed from start to goal on a bearing over the full circle
+_STRUCTURE_GOAL_X = 27.0  # corridor, wall-gap and dog-leg: the goal near x = 27 before the quarter turn
+
+
+@dataclass(frozen=True)
+class _Team:
+    """The formations a family draws when the caller does not override them."""
+
+    n_uavs: tuple[int, int]  # inclusive range
+    spacing: tuple[float, float]
+
+
+def _draw_team(rng, team: _Team, n_uavs, formation, spacing) -> tuple[int, str, float]:
+    """Size, shape and spacing: the overrides where given, else drawn. Always three draws, so an override
+    never shifts the rest of the seed's stream."""
+    drawn_n, u_shape, drawn_spacing = (int(rng.integers(team.n_uavs[0], team.n_uavs[1] + 1)), rng.random(),
+                                       round(rng.uniform(*team.spacing) * 20.0) / 20.0)  # 5 cm steps
+    if n_uavs is None:  # a drawn size fits an overridden shape
+        cap = MAX_UAVS.get(formation) if isinstance(formation, str) else None
+        n_uavs = drawn_n if cap is None else min(drawn_n, cap)
+    if formation is None:  # a drawn shape holds the size (Mission reports a malformed size)
+        fits = [f for f in FORMATION_SHAPES if MAX_UAVS[f] is None
+                or (isinstance(n_uavs, (int, np.integer)) and n_uavs <= MAX_UAVS[f])]
+        formation = fits[int(u_shape * len(fits))]
+    return n_uavs, formation, drawn_spacing if spacing is None else spacing
+
+
+def _altitudes(rng) -> tuple[float, float]:
+    return tuple(float(z) for z in rng.uniform(*_MISSION_Z, 2))
+
+
+def _open_layout(rng, n_uavs: int, formation: str, spacing: float) -> _Layout:
+    """Start and goal on a random bearing (full circle) through the centre of a square field, at random
+    altitudes; the formation faces the goal at both ends and the bounds grow to hold it."""
+    bearing, distance = rng.uniform(-math.pi, math.pi), rng.uniform(*_OPEN_DISTANCE)
+    z_start, z_goal = _altitudes(rng)
+    centre = np.full(2, _OPEN_FIELD / 2)
+    half = 0.5 * distance * np.array([math.cos(bearing), math.sin(bearing)])
+    start, goal = centre - half, centre + half
+    offsets = slot_offsets(formation, n_uavs, spacing)
+    keep_out = np.vstack([slot_positions(p, bearing, offsets, 0.0)[:, :2] for p in (start, goal)])
+    lo = np.floor(np.minimum(0.0, keep_out.min(axis=0) - _ZONE_RADIUS))
+    hi = np.ceil(np.maximum(_OPEN_FIELD, keep_out.max(axis=0) + _ZONE_RADIUS))
+    mission = Mission(start=(start[0], start[1], z_start), goal=(goal[0], goal[1], z_goal), start_heading=bearing,
+                      formation=formation, spacing=spacing, n_uavs=n_uavs, slot_altitude="leader")
+    return _Layout(mission, (lo[0], lo[1], 0.0), (hi[0], hi[1], _CEILING), keep_out, (lo[0], hi[0]))
+
+
+def _hard_core(rng, layout: _Layout, count: int, radius_range: tuple[float, float], gap: float, rounds: int = 4):
+    """Centres (k, 2) and radii (k,) of up to ``count`` discs clear of the zones, any two 2 (r_uav + r_safe)
+    + ``gap`` apart (as ``_scatter``), without a per-disc loop: each round throws a batch of candidates and
+    keeps those that clash with no disc kept before and no earlier valid candidate of the batch (Matern
+    type-II thinning), so the kept discs never clash."""
+    sep = 2 * _R_CLEAR + gap
+    kept_c, kept_r = np.empty((0, 2)), np.empty(0)
+    for _ in range(rounds):
+        c = rng.uniform(layout.bounds_lo[:2], layout.bounds_hi[:2], (3 * count, 2))
+        r = rng.uniform(*radius_range, 3 * count)
+        ok = _disc_distance(c, layout.keep_out) - r >= _ZONE_RADIUS
+        if kept_r.size:
+            to_kept = np.hypot(c[:, None, 0] - kept_c[None, :, 0], c[:, None, 1] - kept_c[None, :, 1])
+            ok &= np.all(to_kept - r[:, None] - kept_r[None, :] >= sep, axis=1)
+        pair = np.hypot(c[:, None, 0] - c[None, :, 0], c[:, None, 1] - c[None, :, 1]) - r[:, None] - r[None, :]
+        ok &= ~np.any(np.tril(pair < sep, k=-1) & ok[None, :], axis=1)
+        take = np.flatnonzero(ok)[:count - kept_r.size]
+        kept_c, kept_r = np.vstack([kept_c, c[take]]), np.concatenate([kept_r, r[take]])
+    return kept_c, kept_r
+
+
+def _forest_2(rng, n_uavs, formation, spacing, difficulty):
+    """forest@1's trees, crossed on any bearing between any two altitudes."""
+    layout = _open_layout(rng, n_uavs, formation, spacing)
+    centres, radii = _hard_core(rng, layout, count=50, radius_range=(0.3, 0.8), gap=1.0)
+    tops = _tops(rng, len(radii), tall_fraction=0.7)
+    obstacles = [Cylinder(x, y, r, 0.0, top) for (x, y), r, top in zip(centres, radii, tops)]
     return layout.bounds_lo, layout.bounds_hi, obstacles, layout.mission
+
+
+def _urban_2(rng, n_uavs, formation, spacing, difficulty):
+    """urban@1's blocks, crossed on any bearing: the goal often lies behind a building (a dog-leg)."""
+    layout = _open_layout(rng, n_uavs, formation, spacing)
+    return _blocks(rng, layout)
+
+
+def _random_3d_2(rng, n_uavs, formation, spacing, difficulty):
+    """random-3d@1's mix, crossed on any bearing between any two altitudes."""
+    d = _RANDOM_3D[difficulty]
+    layout = _open_layout(rng, n_uavs, formation, spacing)
+    centres, radii = _hard_core(rng, layout, d.count, d.radius, d.gap)
+    return layout.bounds_lo, layout.bounds_hi, _mixed(rng, centres, radii, d), layout.mission
+
+
+def _quarter_turn(k: int, bounds_lo, bounds_hi, obstacles, mission: Mission):
+    """World and mission turned by k quarter turns about the z axis (exact: coordinate swaps and signs)."""
+    def turn(p):  # (m, 2+) -> the same points turned
+        p = np.array(p, dtype=float).reshape(-1, np.shape(p)[-1])
+        for _ in range(k % 4):
+            p[:, 0], p[:, 1] = -p[:, 1], p[:, 0].copy()
+        return p
+
+    def box(lo, hi):
+        corners = turn([lo, hi])
+        return corners.min(axis=0), corners.max(axis=0)
+
+    lo, hi = box(bounds_lo, bounds_hi)
+    out = []
+    for ob in obstacles:
+        if isinstance(ob, Box):
+            out.append(Box(*box(ob.lo, ob.hi)))
+        elif isinstance(ob, Cylinder):
+            (x, y), = turn([ob.x, ob.y])
+            out.append(Cylinder(x, y, ob.radius, ob.z_lo, ob.z_hi))
+        else:
+            (x, y, z), = turn([ob.x, ob.y, ob.z])
+            out.append(Sphere(x, y, z, ob.radius))
+    start, goal = turn([mission.start, mission.goal])
+    heading = math.remainder(mission.start_heading + k * math.pi / 2, 2 * math.pi)
+    return tuple(lo), tuple(hi), out, replace(mission, start=tuple(start), goal=tuple(goal), start_heading=heading)
+
+
+def _structure_layout(rng, n_uavs, formation, spacing, min_field: float) -> _Layout:
+    """The version-1 layout along +x (shorter, at random altitudes, slots at the leader's altitude)."""
+    return _layout(rng, n_uavs, formation, spacing, min_field=min_field, goal_x=_STRUCTURE_GOAL_X,
+                   z=_altitudes(rng), slot_altitude="leader")
+
+
+def _corridor_2(rng, n_uavs, formation, spacing, difficulty):
+    """corridor@1 at random altitudes, along x or y in either direction (a random quarter turn)."""
+    layout = _structure_layout(rng, n_uavs, formation, spacing, _CORRIDOR_LENGTH[1] + 2.0)
+    bounds_lo, bounds_hi, obstacles, mission = _corridor_walls(rng, layout)
+    return _quarter_turn(int(rng.integers(4)), bounds_lo, bounds_hi, obstacles, mission)
+
+
+def _wall_gap_2(rng, n_uavs, formation, spacing, difficulty):
+    """wall-gap@1 with its gap above or below the start's (random) altitude, the goal at another random
+    altitude, along x or y in either direction."""
+    layout = _structure_layout(rng, n_uavs, formation, spacing, 3.0)
+    bounds_lo, bounds_hi, obstacles, mission = _gap_wall(rng, layout, layout.mission.start[2])
+    return _quarter_turn(int(rng.integers(4)), bounds_lo, bounds_hi, obstacles, mission)
+
+
+_DOOR_WIDTH = (3.5, 5.0)  # wide enough for one UAV with margin; narrower than most formations
+_DOOR_SIDE = (4.5, 8.0)  # door centre this far from the field's edge: off the straight start-goal line
+_WALL_THICKNESS = (0.3, 0.6)
+_DOG_LEG_WALLS = {"easy": 1, "hard": 2}
+
+
+def _dog_leg(rng, n_uavs, formation, spacing, difficulty):
+    """Walls through the whole height across the field, each with one door near an edge, alternate sides:
+    the goal is hidden from the start and the way to it bends (one bend per wall), along x or y in
+    either direction. Start and goal lie within 3 m of the middle, so the straight line hits a wall."""
+    layout = _structure_layout(rng, n_uavs, formation, spacing, 12.0)
+    n_walls = _DOG_LEG_WALLS[difficulty]
+    f0, f1 = layout.field
+    xs = f0 + (f1 - f0) * np.arange(1, n_walls + 1) / (n_walls + 1)
+    thickness = rng.uniform(*_WALL_THICKNESS, n_walls)
+    widths = rng.uniform(*_DOOR_WIDTH, n_walls)
+    sides = (int(rng.integers(2)) + np.arange(n_walls)) % 2  # 0: door near y = 0, 1: near y = _FIELD[1]
+    inset = rng.uniform(*_DOOR_SIDE, n_walls)
+    centres = np.where(sides == 0, inset, _FIELD[1] - inset)
+    y_lo, y_hi = layout.bounds_lo[1] - 1.0, layout.bounds_hi[1] + 1.0
+    obstacles = []
+    for x, t, c, w in zip(xs - thickness / 2, thickness, centres, widths):
+        obstacles += [Box((x, y_lo, 0.0), (x + t, c - w / 2, _CEILING)), Box((x, c + w / 2, 0.0), (x + t, y_hi, _CEILING))]
+    return _quarter_turn(int(rng.integers(4)), layout.bounds_lo, layout.bounds_hi, obstacles, layout.mission)
+
+
+_CLASSIC_START = ((-1.5, -1.5), (1.0, 0.5))  # the start's x, y range: clear of the disc at (0, 2) by >= 1 m
+
+
+def _classic_2d_2(rng, n_uavs, formation, spacing, difficulty):
+    """classic-2d@1 with the start position and heading drawn from the seed."""
+    start, heading = rng.uniform(*_CLASSIC_START), rng.uniform(-math.pi, math.pi)
+    bounds_lo, bounds_hi, obstacles, mission = _classic_2d(rng, n_uavs, formation, spacing, difficulty)
+    slots = slot_positions(start, heading, slot_offsets(formation, n_uavs, spacing), _Z_REF)[:, :2]
+    lo = np.minimum(bounds_lo[:2], np.floor(slots.min(axis=0) - _ZONE_RADIUS))
+    hi = np.maximum(bounds_hi[:2], np.ceil(slots.max(axis=0) + _ZONE_RADIUS))
+    mission = replace(mission, start=(start[0], start[1], _Z_REF), start_heading=heading, slot_altitude="leader")
+    return (lo[0], lo[1], 0.0), (hi[0], hi[1], _CEILING), obstacles, mission
 
 
 @dataclass(frozen=True)
@@ -514,16 +765,23 @@ class _Generator:
     n_uavs: int = _DEFAULT_N_UAVS
     difficulties: tuple[str, ...] = ()
     default_difficulty: str | None = None
+    team: _Team | None = None  # draw the formation from this range when not overridden (version 2)
 
 
 # name -> version -> generator. Never change a published version's output: add a new version.
+_OPEN_TEAM, _NARROW_TEAM = _Team((2, 10), (1.5, 3.0)), _Team((2, 6), (1.5, 2.5))
 _REGISTRY: dict[str, dict[int, _Generator]] = {
-    "classic-2d": {1: _Generator(_classic_2d, n_uavs=1, difficulties=("base", "extended"), default_difficulty="base")},
-    "forest": {1: _Generator(_forest)},
-    "urban": {1: _Generator(_urban)},
-    "wall-gap": {1: _Generator(_wall_gap)},
-    "corridor": {1: _Generator(_corridor)},
-    "random-3d": {1: _Generator(_random_3d, difficulties=tuple(_RANDOM_3D), default_difficulty="medium")},
+    "classic-2d": {1: _Generator(_classic_2d, n_uavs=1, difficulties=("base", "extended"), default_difficulty="base"),
+                   2: _Generator(_classic_2d_2, n_uavs=1, difficulties=("base", "extended"), default_difficulty="base")},
+    "forest": {1: _Generator(_forest), 2: _Generator(_forest_2, team=_OPEN_TEAM)},
+    "urban": {1: _Generator(_urban), 2: _Generator(_urban_2, team=_OPEN_TEAM)},
+    "wall-gap": {1: _Generator(_wall_gap), 2: _Generator(_wall_gap_2, team=_Team((2, 8), (1.5, 3.0)))},
+    "corridor": {1: _Generator(_corridor), 2: _Generator(_corridor_2, team=_NARROW_TEAM)},
+    "random-3d": {1: _Generator(_random_3d, difficulties=tuple(_RANDOM_3D), default_difficulty="medium"),
+                  2: _Generator(_random_3d_2, difficulties=tuple(_RANDOM_3D), default_difficulty="medium",
+                                team=_OPEN_TEAM)},
+    "dog-leg": {1: _Generator(_dog_leg, difficulties=tuple(_DOG_LEG_WALLS), default_difficulty="easy",
+                              team=_NARROW_TEAM)},
 }
 
 
@@ -553,8 +811,10 @@ def make_scenario(name: str, seed: int = 0, *, n_uavs: int | None = None, format
                   spacing: float | None = None, difficulty: str | None = None) -> Scenario:
     """Generate a registered scenario; the same (name, version, seed, overrides) always gives the same scenario.
 
-    Defaults: classic-2d flies 1 UAV, the others 5 in a wedge at 2 m spacing; ``difficulty`` is
-    "base" | "extended" for classic-2d, "easy" | "medium" | "hard" for random-3d (default "medium").
+    Defaults: version 1 flies 1 UAV in classic-2d, 5 in a wedge at 2 m spacing elsewhere; version 2 draws
+    the size, shape and spacing the caller leaves out from the family's range (``_Team``; classic-2d
+    flies 1 UAV). ``difficulty`` is "base" | "extended" for classic-2d, "easy" | "medium" | "hard" for
+    random-3d (default "medium"), "easy" (one wall) | "hard" (two) for dog-leg.
     """
     base, version, gen = _lookup(name)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
@@ -564,13 +824,16 @@ def make_scenario(name: str, seed: int = 0, *, n_uavs: int | None = None, format
     elif difficulty not in gen.difficulties:
         allowed = f"one of {list(gen.difficulties)}" if gen.difficulties else "None (it has no difficulty levels)"
         raise ValueError(f"difficulty={difficulty!r} for scenario {base!r}: expected {allowed}")
+    rng = np.random.default_rng(int(seed))
+    if gen.team is not None:
+        n_uavs, formation, spacing = _draw_team(rng, gen.team, n_uavs, formation, spacing)
     formation_defaults = FormationConfig()
     n_uavs = gen.n_uavs if n_uavs is None else n_uavs
     formation = formation_defaults.shape if formation is None else formation
     spacing = formation_defaults.spacing if spacing is None else spacing
     mission = Mission(start=(0.0, 0.0, 0.0), goal=(0.0, 0.0, 0.0), start_heading=0.0, formation=formation,
                       spacing=spacing, n_uavs=n_uavs)  # validates the overrides before they shape the layout
-    bounds_lo, bounds_hi, obstacles, mission = gen.build(np.random.default_rng(int(seed)), mission.n_uavs,
+    bounds_lo, bounds_hi, obstacles, mission = gen.build(rng, mission.n_uavs,
                                                          mission.formation, mission.spacing, difficulty)
     return Scenario(name=base, version=version, seed=int(seed), bounds_lo=bounds_lo, bounds_hi=bounds_hi,
                     resolution=_RESOLUTION, obstacles=tuple(obstacles), mission=mission)
@@ -591,16 +854,21 @@ def load_scenario(name_or_path, seed: int = 0, *, n_uavs: int | None = None, for
                          difficulty=difficulty)
 
 
+_GOAL_HEADINGS = 36  # goal slots are checked at the start-to-goal bearing, the start heading and 36 more headings
+
+
 def validate_scenario(scn: Scenario, limits: UAVLimits, z_ref: float, world: World | None = None, *,
                       source: str | None = None) -> None:
-    """Raise ValueError listing every reason the mission cannot start with UAVs of these limits.
+    """Raise ValueError listing every reason the mission cannot be flown with UAVs of these limits.
 
     ``source`` names the scenario in the message (e.g. ``"scenario file my.toml"``); by default its name,
     version and seed.
 
-    Checked: the leader's start and the goal, and every follower's start slot (at ``z_ref``), lie inside
-    the bounds and the altitude band with clearance >= r_uav + r_safe; the formation holds n_uavs; the
-    spacing exceeds two UAV radii.
+    Checked: the leader's start and the goal, and every follower's start slot, lie inside the bounds
+    and the altitude band with clearance >= r_uav + r_safe; the formation's goal slots pass the same
+    test at some heading of the leader (the start-to-goal bearing, the start heading or one of 36
+    evenly spaced ones: the arrival heading is the policy's choice); the formation holds n_uavs; the
+    spacing exceeds two UAV radii. Slot altitudes follow the mission's ``slot_altitude``.
     """
     if not isinstance(scn, Scenario):
         raise ValueError(f"scn: expected a Scenario, got {type(scn).__name__}")
@@ -608,30 +876,56 @@ def validate_scenario(scn: Scenario, limits: UAVLimits, z_ref: float, world: Wor
         raise ValueError(f"limits: expected a UAVLimits, got {type(limits).__name__}")
     z_ref = as_finite("validate_scenario", "z_ref", z_ref)
     m = scn.mission
-    r_clear = limits.r_uav + limits.r_safe
     problems = []
     if m.spacing <= 2.0 * limits.r_uav:
         problems.append(f"spacing {m.spacing:g} m does not exceed two UAV radii (2 * r_uav = {2 * limits.r_uav:g} m)")
+    world = world if world is not None else scn.build_world()
     names, points = ["leader start", "goal"], [m.start, m.goal]
+    goal_slots = None
     try:
-        slots = slot_positions(np.array(m.start[:2]), m.start_heading,
-                               slot_offsets(m.formation, m.n_uavs, m.spacing), z_ref)
+        offsets = slot_offsets(m.formation, m.n_uavs, m.spacing)
+        slots = formation_slots(np.array(m.start), m.start_heading, offsets, z_ref, m.slot_altitude)
         names += [f"follower {j} start slot" for j in range(1, m.n_uavs)]
         points += [tuple(p) for p in slots[1:]]
+        if m.n_uavs > 1:
+            bearing = math.atan2(m.goal[1] - m.start[1], m.goal[0] - m.start[0])
+            headings = np.concatenate([[bearing, m.start_heading],
+                                       np.linspace(-math.pi, math.pi, _GOAL_HEADINGS, endpoint=False)])
+            goal_slots = np.stack([formation_slots(np.array(m.goal), h, offsets, z_ref, m.slot_altitude)[1:]
+                                   for h in headings])  # (H, n - 1, 3)
     except ValueError as exc:
         problems.append(str(exc))
     pts = np.array(points)
-    lo, hi = np.array(scn.bounds_lo), np.array(scn.bounds_hi)
-    clearance = (world if world is not None else scn.build_world()).clearance(pts)
-    for name, p, c in zip(names, pts, clearance):
-        where = f"{name} ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f})"
-        if np.any(p < lo) or np.any(p > hi):
-            problems.append(f"{where} lies outside the world bounds {scn.bounds_lo} .. {scn.bounds_hi}")
-        if not limits.z_min <= p[2] <= limits.z_max:
-            problems.append(f"{where} lies outside the altitude band [{limits.z_min:g}, {limits.z_max:g}]")
-        if c < r_clear:
-            problems.append(f"{where} has clearance {c:.3f} m < r_uav + r_safe = {r_clear:g} m")
+    bad, describe = _standing(scn, limits, world, pts)
+    problems += [f"{names[k]} {describe(k)}" for k in np.flatnonzero(bad)]
+    if goal_slots is not None:
+        blocked, describe = _standing(scn, limits, world, goal_slots.reshape(-1, 3))
+        blocked = blocked.reshape(goal_slots.shape[:2])
+        if blocked.any(axis=1).all():
+            j = int(np.flatnonzero(blocked[0])[0])
+            problems.append("the goal slots are blocked at every heading of the leader; at the start-to-goal "
+                            f"bearing follower {j + 1} goal slot {describe(j)}")
     if problems:
         who = source if source is not None else f"scenario {scn.name!r} (version {scn.version}, seed {scn.seed})"
         raise ValueError(f"{who} cannot be flown: "
                          + "; ".join(problems))
+
+
+def _standing(scn: Scenario, limits: UAVLimits, world: World, pts: np.ndarray):
+    """Which points (m, 3) a UAV cannot stand on (outside the bounds or the band, or too close to an
+    obstacle), and ``describe(k)``: point k and why, for the error message."""
+    lo, hi = np.array(scn.bounds_lo), np.array(scn.bounds_hi)
+    r_clear = limits.r_uav + limits.r_safe
+    clearance = world.clearance(pts)
+    outside = np.any((pts < lo) | (pts > hi), axis=1)
+    off_band = (pts[:, 2] < limits.z_min) | (pts[:, 2] > limits.z_max)
+    close = clearance < r_clear
+
+    def describe(k: int) -> str:
+        p = pts[k]
+        issue = ([f"lies outside the world bounds {scn.bounds_lo} .. {scn.bounds_hi}"] * bool(outside[k])
+                 + [f"lies outside the altitude band [{limits.z_min:g}, {limits.z_max:g}]"] * bool(off_band[k])
+                 + [f"has clearance {clearance[k]:.3f} m < r_uav + r_safe = {r_clear:g} m"] * bool(close[k]))
+        return f"({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) " + "; ".join(issue)
+
+    return outside | off_band | close, describe

@@ -79,12 +79,11 @@ class RangeSensor:
         return out[0]
 
     def scan(self, occupied: np.ndarray, origin, res: float, positions: np.ndarray, yaws: np.ndarray,
-             step: int, uav_radius: float, rng: np.random.Generator | None = None) -> Scan:
+             step: int, uav_radius: float) -> Scan:
         """Cast every UAV's rays through ``occupied`` (uint8 (nx, ny, nz), lower corner ``origin``).
 
         Outside the grid is free space except z < 0 (ground). Every UAV is a sphere of
-        ``uav_radius`` seen by the others. With ``cfg.noise_std > 0`` each kind 1/2 range gets
-        Gaussian noise from ``rng`` (its endpoint moves along the ray by the same amount).
+        ``uav_radius`` seen by the others. Sensor faults are a separate step: ``perturb_scan``.
         """
         occupied = np.asarray(occupied)
         if occupied.ndim != 3 or occupied.dtype != np.uint8:
@@ -100,10 +99,6 @@ class RangeSensor:
         if isinstance(uav_radius, bool) or not np.isfinite(uav_radius) or uav_radius < 0:
             raise ValueError(f"uav_radius={uav_radius!r}: expected a finite radius >= 0")
         step = _check_step(step)
-        noisy = self.cfg.noise_std > 0.0
-        if noisy and not isinstance(rng, np.random.Generator):
-            raise ValueError("rng: expected a numpy Generator when SensorConfig.noise_std > 0, "
-                             f"got {type(rng).__name__}")
 
         n, r = positions.shape[0], self._fan.shape[0]
         dirs = np.empty((n, r, 3))
@@ -113,13 +108,35 @@ class RangeSensor:
         endpoints = np.empty((n, r, 3))
         _cast_rays(np.ascontiguousarray(occupied), key0, float(res), positions, dirs, float(self.cfg.r_max),
                    float(uav_radius), ranges, kind, endpoints)
-        if noisy:
-            noise = rng.normal(0.0, self.cfg.noise_std, size=(n, r))
-            noise[kind == NOTHING] = 0.0
-            noise = np.maximum(noise, -ranges)  # a range never turns negative
-            ranges += noise
-            endpoints += dirs * noise[..., None]
         return Scan(directions=dirs, ranges=ranges, kind=kind, endpoints=endpoints)
+
+
+def perturb_scan(scan: Scan, positions: np.ndarray, r_max: float, noise_std: float, dropout: float,
+                 noise_rng: np.random.Generator | None, dropout_rng: np.random.Generator | None) -> Scan:
+    """The scan as a faulty sensor reports it (``DisturbanceConfig``): a new ``Scan``, the input untouched.
+
+    Every range that hit something (kind 1 or 2) gets Gaussian noise of ``noise_std`` m from
+    ``noise_rng`` (never below 0; its endpoint moves along the ray). Then each ray is lost with
+    probability ``dropout``, drawn from ``dropout_rng``: it reads as no return (kind 0, range r_max).
+    Each fault draws one full (N, R) array from its own generator, so enabling one never shifts the other.
+    """
+    for name, rate, rng in (("noise_rng", noise_std, noise_rng), ("dropout_rng", dropout, dropout_rng)):
+        if rate > 0.0 and not isinstance(rng, np.random.Generator):
+            raise ValueError(f"{name}: expected a numpy Generator, got {type(rng).__name__}")
+    ranges, kind, endpoints = scan.ranges.copy(), scan.kind.copy(), scan.endpoints.copy()
+    if noise_std > 0.0:
+        noise = noise_rng.normal(0.0, noise_std, size=ranges.shape)
+        noise[kind == NOTHING] = 0.0
+        noise = np.maximum(noise, -ranges)  # a range never turns negative
+        ranges += noise
+        endpoints += scan.directions * noise[..., None]
+    if dropout > 0.0:
+        lost = dropout_rng.random(ranges.shape) < dropout
+        ranges[lost] = r_max
+        kind[lost] = NOTHING
+        origins = np.broadcast_to(np.asarray(positions, dtype=np.float64)[:, None, :], endpoints.shape)
+        endpoints[lost] = origins[lost] + scan.directions[lost] * r_max
+    return Scan(directions=scan.directions, ranges=ranges, kind=kind, endpoints=endpoints)
 
 
 def _check_step(step) -> int:

@@ -18,6 +18,8 @@ import time
 import traceback
 from pathlib import Path
 
+import numpy as np
+
 from ..files import append_line, atomic_write_json, read_jsonl, set_aside_torn_line
 from ..parallel import imap_unordered
 from .suites import Episode, Suite
@@ -34,22 +36,48 @@ def play(episode: dict, policy_spec: str, time_limit: float | None) -> dict:
     policy per episode make the metrics independent of which worker ran what before.
     """
     from ..formation_v0 import parallel_env
+    from ..metrics import episode_outcome
     from ..policies import load_policy
     from ..rollout import EpisodeTimeout, run_episode
 
     ep = Episode(**episode)
     record = {"episode": ep.key, "policy": policy_spec, **ep.to_dict()}
     start = time.perf_counter()
+    policy = None
     try:
         penv = parallel_env(**ep.env_kwargs())
-        metrics = run_episode(penv, load_policy(policy_spec), ep.seed, time_limit=time_limit)
-        record.update(status="ok", steps=int(penv.unwrapped.step_count), metrics=metrics, error=None)
+        policy = load_policy(policy_spec)
+        metrics = run_episode(penv, policy, ep.seed, time_limit=time_limit)
+        outcome, detail = episode_outcome(penv.unwrapped)
+        record.update(status="ok", steps=int(penv.unwrapped.step_count), metrics=metrics, error=None,
+                      outcome=outcome, outcome_detail=detail)
     except Exception as e:  # a broken policy must not stop the benchmark: record it and go on
         status = "time_limit" if isinstance(e, EpisodeTimeout) else "failed"
-        record.update(status=status, steps=None, metrics=None,
+        record.update(status=status, steps=None, metrics=None, outcome=status, outcome_detail=f"{type(e).__name__}: {e}",
                       error="".join(traceback.format_exception(type(e), e, e.__traceback__)))
+    if record["outcome"] != "success":
+        record["diagnostics"] = policy_diagnostics(policy)
     record["wall_time"] = time.perf_counter() - start
     return record
+
+
+def policy_diagnostics(policy) -> dict | None:
+    """The policy's own account of its last step (its ``diagnostics`` attribute, if it has one) as plain JSON
+    values, so a failed episode's record says what the policy thought it was doing."""
+    diagnostics = getattr(policy, "diagnostics", None)
+    if diagnostics is None:
+        return None
+
+    def plain(value):
+        if isinstance(value, dict):
+            return {str(k): plain(v) for k, v in value.items()}
+        if isinstance(value, (list, tuple, np.ndarray)):
+            return [plain(v) for v in value]
+        if isinstance(value, np.generic):
+            return value.item()
+        return value if isinstance(value, (str, int, float, bool)) or value is None else repr(value)
+
+    return plain(diagnostics)
 
 
 def policy_fingerprint(spec: str) -> str | None:

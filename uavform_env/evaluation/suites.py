@@ -2,7 +2,8 @@
 
 A suite is a TOML file (``suites/<name>.toml`` in this package, or any path) listing episodes as
 ``[[episode]]`` tables with ``scenario`` (a pinned ``name@version``), ``n_uavs``, ``formation``,
-``seed``, ``max_cycles`` and an optional ``difficulty``. The hash covers exactly what decides an
+``seed``, ``max_cycles`` and optional ``difficulty``, ``spacing`` (m; default: the generator's) and
+``disturbance`` (a preset name of ``config.DISTURBANCE_PRESETS``; default: calm). The hash covers exactly what decides an
 episode's outcome (the episode list), so two result tables are comparable only if their hashes match;
 the name and description are labels and stay out of it.
 """
@@ -15,7 +16,7 @@ from dataclasses import asdict, dataclass
 from importlib import resources
 from pathlib import Path
 
-from ..config import EnvConfig
+from ..config import EnvConfig, disturbance_preset
 from ..scenarios import make_scenario, validate_scenario
 
 try:
@@ -23,7 +24,8 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
-_EPISODE_KEYS = ("scenario", "difficulty", "n_uavs", "formation", "seed", "max_cycles")
+_EPISODE_KEYS = ("scenario", "difficulty", "n_uavs", "formation", "spacing", "seed", "max_cycles", "disturbance")
+_OPTIONAL_KEYS = ("spacing", "disturbance")  # absent (None) keys stay out of the hash and the key: v0 keeps both
 _REQUIRED_KEYS = ("scenario", "n_uavs", "formation", "seed", "max_cycles")
 
 
@@ -37,12 +39,26 @@ class Episode:
     seed: int
     max_cycles: int
     difficulty: str | None = None
+    spacing: float | None = None
+    disturbance: str | None = None
 
     @property
     def key(self) -> str:
         """A stable identifier; results are matched to episodes by it on resume."""
+        extra = (f"/sp{self.spacing:g}" if self.spacing is not None else "") + \
+            (f"/{self.disturbance}" if self.disturbance is not None else "")
         return (f"{self.scenario}/{self.difficulty or '-'}/n{self.n_uavs}/{self.formation}"
-                f"/s{self.seed}/c{self.max_cycles}")
+                f"/s{self.seed}/c{self.max_cycles}{extra}")
+
+    @property
+    def family(self) -> str:
+        """The scenario family without version or difficulty."""
+        return self.scenario.partition("@")[0]
+
+    @property
+    def wind(self) -> str:
+        """The disturbance preset's name (calm when the episode names none)."""
+        return self.disturbance or "calm"
 
     @property
     def task(self) -> str:
@@ -54,12 +70,13 @@ class Episode:
         """Keyword arguments of ``formation_v0.parallel_env`` that build this episode's env."""
         kwargs = dict(scenario=self.scenario, n_uavs=self.n_uavs, formation=self.formation,
                       max_cycles=self.max_cycles)
-        if self.difficulty is not None:
-            kwargs["difficulty"] = self.difficulty
+        for name in ("difficulty", "spacing", "disturbance"):
+            if getattr(self, name) is not None:
+                kwargs[name] = getattr(self, name)
         return kwargs
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        return {k: v for k, v in asdict(self).items() if not (k in _OPTIONAL_KEYS and v is None)}
 
 
 @dataclass(frozen=True)
@@ -126,10 +143,15 @@ def _parse(doc: dict, where: str) -> Suite:
             value = entry[key]
             if isinstance(value, bool) or not isinstance(value, int) or value < lowest:
                 raise ValueError(f"{here}: {key}={value!r}: expected an integer >= {lowest}")
+        spacing = entry.get("spacing")
+        if spacing is not None and (isinstance(spacing, bool) or not isinstance(spacing, (int, float))):
+            raise ValueError(f"{here}: spacing={spacing!r}: expected a number of metres")
         episode = Episode(**entry)
         try:
+            if episode.disturbance is not None:
+                disturbance_preset(episode.disturbance)
             scn = make_scenario(episode.scenario, episode.seed, n_uavs=episode.n_uavs, formation=episode.formation,
-                                difficulty=episode.difficulty)
+                                spacing=episode.spacing, difficulty=episode.difficulty)
             validate_scenario(scn, env_cfg.uav, env_cfg.formation.z_ref)
         except ValueError as e:
             raise ValueError(f"{here} ({episode.key}): {e}") from e

@@ -5,12 +5,19 @@ mean formation error RMS (lower: formation), then mean flight time (lower: effic
 episode (policy exception or wall-clock limit) counts as a non-success; its other metrics are
 unknown and left out of the means. Intervals are percentile bootstraps over episodes with a fixed
 seed, and values are taken in suite order, so the same results always give the same table.
+
+Beside the ranking: success and collision rates per scenario family and per disturbance preset, why
+episodes ended (``OUTCOMES``), and for each pair of policies the probability of improvement
+P(X > Y) (Agarwal et al. 2021, rliable): over the episodes both played, the fraction where X's
+outcome beats Y's on the score above (ties count one half), with a paired bootstrap interval.
+A metric a record does not hold (results written before it existed) is absent, never an error.
 """
 
 from __future__ import annotations
 
 import csv
 import io
+import json
 import math
 import os
 from pathlib import Path
@@ -43,11 +50,55 @@ def bootstrap_ci(values: np.ndarray, n_boot: int = N_BOOT, seed: int = BOOT_SEED
     return float(v.mean()), float(lo), float(hi)
 
 
+# Why an episode ended: the env's END_REASONS minus "running", then the runner's failures.
+# Records written before outcomes were kept get "crash" (what was hit is unknown) or "success-with-crash" (their
+# success counted although a UAV had crashed: the rule before issue 12).
+OUTCOMES = ("success", "timeout", "crash-obstacle", "crash-uav", "crash-geofence", "crash", "success-with-crash",
+            "failed", "time_limit")
+
+
 def episode_values(record: dict) -> dict:
-    """The metric values a record contributes: all metrics if it finished, else success 0 and NaNs."""
+    """The metric values a record contributes: all metrics if it finished, else success 0 and NaNs. A metric
+    the record does not hold (written before the metric existed) is NaN."""
     if record["status"] == "ok":
-        return {m: float(record["metrics"][m]) for m in METRIC_NAMES}
+        return {m: float(record["metrics"].get(m, math.nan)) for m in METRIC_NAMES}
     return {m: (0.0 if m == "success" else math.nan) for m in METRIC_NAMES}
+
+
+def episode_outcome(record: dict) -> str:
+    """One of ``OUTCOMES``; records written before outcomes were recorded get theirs from the metrics."""
+    if "outcome" in record:
+        return record["outcome"]
+    if record["status"] != "ok":
+        return record["status"]
+    m = record["metrics"]
+    if m.get("collision"):
+        return "success-with-crash" if m.get("success") else "crash"
+    return "success" if m.get("success") else "timeout"
+
+
+def _episode_score(values: dict) -> tuple:
+    return ranking_key({m: values[m] for m, _ in RANKING})
+
+
+def probability_of_improvement(x: list[dict], y: list[dict], n_boot: int = N_BOOT,
+                               seed: int = BOOT_SEED) -> tuple[float, float, float]:
+    """P(X > Y): over paired episodes (x[i] and y[i] are the metric values of one episode), the mean of
+    1 if X's outcome scores better, 1/2 if equal, 0 if worse (the ranking's lexicographic score), with
+    its 2.5th and 97.5th bootstrap percentiles over episodes. NaNs if there are no episodes."""
+    if not x:
+        return math.nan, math.nan, math.nan
+    sx, sy = [_episode_score(v) for v in x], [_episode_score(v) for v in y]
+    wins = np.array([1.0 if a < b else (0.5 if a == b else 0.0) for a, b in zip(sx, sy)])
+    idx = np.random.default_rng(seed).integers(0, wins.size, size=(n_boot, wins.size))
+    lo, hi = np.percentile(wins[idx].mean(axis=1), [2.5, 97.5])
+    return float(wins.mean()), float(lo), float(hi)
+
+
+def _rate(values: list[dict], metric: str) -> dict:
+    column = np.array([v[metric] for v in values])
+    mean, lo, hi = bootstrap_ci(column)
+    return {"mean": mean, "ci_low": lo, "ci_high": hi, "n": int(np.isfinite(column).sum())}
 
 
 def summarize(suite: Suite, records: list[dict]) -> dict:
@@ -64,23 +115,42 @@ def summarize(suite: Suite, records: list[dict]) -> dict:
         if r["episode"] in runs:
             raise ValueError(f"two results for episode {r['episode']!r} of policy {r['policy']!r}")
         runs[r["episode"]] = r
-    rows = []
+    episodes = {e.key: e for e in suite.episodes}
+    rows, values_of = [], {}
     for policy, runs in by_policy.items():
         ordered = sorted(runs.values(), key=lambda r: order[r["episode"]])
         values = [episode_values(r) for r in ordered]
+        values_of[policy] = dict(zip((r["episode"] for r in ordered), values))
         metrics = {}
         for m in METRIC_NAMES:
-            column = np.array([v[m] for v in values])
-            mean, lo, hi = bootstrap_ci(column)
-            metrics[m] = {"mean": mean, "ci_low": lo, "ci_high": hi, "n": int(np.isfinite(column).sum())}
+            metrics[m] = _rate(values, m)
+            metrics[m]["recorded"] = sum(r["status"] != "ok" or m in r["metrics"] for r in ordered)
+        groups = {}
+        for label, attribute in (("family", "family"), ("disturbance", "wind")):
+            split: dict[str, list] = {}
+            for r, v in zip(ordered, values):
+                split.setdefault(getattr(episodes[r["episode"]], attribute), []).append(v)
+            groups[label] = {g: {m: _rate(vs, m) for m in ("success", "collision")} for g, vs in split.items()}
+        outcomes = [episode_outcome(r) for r in ordered]
         rows.append({"policy": policy, "episodes": len(ordered), "failed": sum(r["status"] != "ok" for r in ordered),
                      "code": sorted({r.get("code", "unknown") for r in ordered}),
-                     "complete": len(ordered) == len(suite.episodes), "metrics": metrics})
+                     "complete": len(ordered) == len(suite.episodes), "metrics": metrics, "groups": groups,
+                     "outcomes": {o: outcomes.count(o) for o in OUTCOMES if o in outcomes}})
     rows.sort(key=_score_key)
     for rank, row in enumerate(rows, 1):
         row["rank"] = rank
+    improvement = {}
+    for a in rows:
+        for b in rows:
+            if a is not b:
+                shared = [k for k in values_of[a["policy"]] if k in values_of[b["policy"]]]
+                p, lo, hi = probability_of_improvement([values_of[a["policy"]][k] for k in shared],
+                                                       [values_of[b["policy"]][k] for k in shared])
+                improvement[f"{a['policy']} > {b['policy']}"] = {"mean": p, "ci_low": lo, "ci_high": hi,
+                                                                  "n": len(shared)}
     return {"suite": suite.name, "suite_hash": suite.hash, "episodes": len(suite.episodes),
-            "ranking": [f"{m} ({better} is better)" for m, better in RANKING], "policies": rows}
+            "ranking": [f"{m} ({better} is better)" for m, better in RANKING], "policies": rows,
+            "improvement": improvement}
 
 
 def ranking_key(means: dict) -> tuple:
@@ -99,7 +169,9 @@ def _score_key(row: dict) -> tuple:
 
 
 def ci_cell(stat: dict) -> str:
-    """A table cell: mean [95% CI], or n/a for an unknown value."""
+    """A table cell: mean [95% CI]; "absent" for a metric no record holds, n/a for an unknown value."""
+    if stat.get("recorded", 1) == 0:
+        return "absent"
     if math.isnan(stat["mean"]):
         return "n/a"
     return f"{stat['mean']:.3g} [{stat['ci_low']:.3g}, {stat['ci_high']:.3g}]"
@@ -127,11 +199,55 @@ def to_markdown(summary: dict) -> str:
         cells = [str(r["rank"]), f"`{r['policy']}`", str(r["episodes"]), str(r["failed"]),
                  *(ci_cell(r["metrics"][m]) for m in ranked)]
         lines.append("| " + " | ".join(cells) + " |")
-    names = " | ".join(f"`{r['policy']}`" for r in summary["policies"])
-    lines += ["", "## All metrics", "", f"| metric | {names} |", "|" + "---|" * (len(summary["policies"]) + 1)]
+    rows = summary["policies"]
+    names = " | ".join(f"`{r['policy']}`" for r in rows)
+    head = [f"| {{}} | {names} |", "|" + "---|" * (len(rows) + 1)]
+    lines += ["", "## Why episodes ended", "", "Episodes per outcome (crash-*: the first crash and what it hit; "
+              "crash, success-with-crash: records written before outcomes were kept, the second counted as a success "
+              "under the old rule although a UAV had crashed; failed / time_limit: the policy raised or ran "
+              "past its wall-clock limit). Each record in results.jsonl holds the detail, and the policy's "
+              "own diagnostics where it exposes them.", "", head[0].format("outcome"), head[1]]
+    seen = [o for o in OUTCOMES if any(o in r["outcomes"] for r in rows)]
+    lines += [f"| {o} | " + " | ".join(str(r["outcomes"].get(o, 0)) for r in rows) + " |" for o in seen]
+    for label in ("family", "disturbance"):
+        groups = sorted({g for r in rows for g in r["groups"][label]})
+        lines += ["", f"## Success and collision rate per {label}", "",
+                  "Cells: success [95% CI] / collision [95% CI] (episodes).", "", head[0].format(label), head[1]]
+        for g in groups:
+            cells = []
+            for r in rows:
+                stat = r["groups"][label].get(g)
+                cells.append("-" if stat is None else f"{ci_cell(stat['success'])} / {ci_cell(stat['collision'])} "
+                                                      f"({stat['success']['n']})")
+            lines.append(f"| {g} | " + " | ".join(cells) + " |")
+    if len(rows) > 1:
+        lines += ["", "## Probability of improvement", "",
+                  "P(row > column): over the episodes both played, how often the row's outcome beats the column's "
+                  "on the score above (ties count 1/2), with a 95% paired bootstrap CI; 0.5 is a tie.", "",
+                  head[0].format("P(row > column)"), head[1]]
+        for a in rows:
+            cells = ["-" if a is b else ci_cell(summary["improvement"][f"{a['policy']} > {b['policy']}"])
+                     for b in rows]
+            lines.append(f"| `{a['policy']}` | " + " | ".join(cells) + " |")
+    lines += ["", "## All metrics", "", head[0].format("metric"), head[1]]
     for m in METRIC_NAMES:
-        lines.append(f"| {_label(m)} | " + " | ".join(ci_cell(r["metrics"][m]) for r in summary["policies"]) + " |")
+        lines.append(f"| {_label(m)} | " + " | ".join(ci_cell(r["metrics"][m]) for r in rows) + " |")
     return "\n".join(lines) + "\n"
+
+
+def to_failures_csv(suite: Suite, records: list[dict]) -> str:
+    """One row per episode that did not succeed: policy, episode, outcome, detail and the policy's diagnostics."""
+    order = {e.key: i for i, e in enumerate(suite.episodes)}
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(["policy", "episode", "outcome", "detail", "diagnostics"])
+    for r in sorted(records, key=lambda r: (r["policy"], order[r["episode"]])):
+        outcome = episode_outcome(r)
+        if outcome != "success":
+            diagnostics = r.get("diagnostics")
+            writer.writerow([r["policy"], r["episode"], outcome, r.get("outcome_detail", ""),
+                             "" if diagnostics is None else json.dumps(diagnostics, sort_keys=True)])
+    return buf.getvalue()
 
 
 def to_csv(summary: dict) -> str:
@@ -198,11 +314,12 @@ def plot(summary: dict, path: str | os.PathLike) -> None:
 
 
 def write_tables(suite: Suite, records: list[dict], out: str | os.PathLike) -> dict:
-    """Write leaderboard.md/.csv/.json (marl-eval layout)/.png into ``out`` and return the summary."""
+    """Write leaderboard.md/.csv/.json (marl-eval layout)/.png and failures.csv into ``out``; return the summary."""
     out = Path(out)
     summary = summarize(suite, records)
     atomic_write_text(out / "leaderboard.md", to_markdown(summary))
     atomic_write_text(out / "leaderboard.csv", to_csv(summary))
+    atomic_write_text(out / "failures.csv", to_failures_csv(suite, records))
     atomic_write_json(out / "leaderboard.json", to_marl_eval(suite, records))
     plot(summary, out / "leaderboard.png")
     return summary

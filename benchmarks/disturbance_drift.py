@@ -1,0 +1,60 @@
+"""How far each disturbance preset pushes a UAV that commands zero speed (README, "Disturbances").
+
+    python benchmarks/disturbance_drift.py [--seeds 40]
+
+One UAV in an empty field commands v = w = vz = 0 for 10 s; the table gives the median and 90th percentile
+of its horizontal distance from the start after 2, 5 and 10 s over the seeds, and for the sensor presets
+the share of rays that hit something but came back as no return.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from uavform_env import parallel_env
+from uavform_env.config import DISTURBANCE_PRESETS
+from uavform_env.scenarios import Mission, Scenario
+
+TIMES = (2.0, 5.0, 10.0)
+
+
+def field() -> Scenario:
+    return Scenario(name="open", version=1, seed=None, bounds_lo=(0.0, 0.0, 0.0), bounds_hi=(60.0, 60.0, 12.0),
+                    resolution=0.2, obstacles=(),
+                    mission=Mission(start=(30.0, 30.0, 3.0), goal=(50.0, 30.0, 3.0), start_heading=0.0,
+                                    formation="wedge", spacing=2.0, n_uavs=1))
+
+
+def drift(preset: str, seeds: int) -> np.ndarray:
+    """(seeds, len(TIMES)) horizontal distances from the start."""
+    steps = int(round(max(TIMES) / 0.1))
+    out = np.empty((seeds, len(TIMES)))
+    for s in range(seeds):
+        penv = parallel_env(scenario=field(), max_cycles=steps, disturbance=preset)
+        penv.reset(seed=s)
+        env = penv.unwrapped
+        start = env.states[0, :2].copy()
+        track = []
+        while penv.agents:
+            penv.step({"uav_0": np.array([-1.0, 0.0, 0.0], np.float32)})
+            track.append(np.hypot(*(env.states[0, :2] - start)))
+        out[s] = [track[int(round(t / 0.1)) - 1] for t in TIMES]
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=40)
+    args = parser.parse_args()
+    print("| preset | " + " | ".join(f"drift after {t:g} s: median / p90 (m)" for t in TIMES) + " |")
+    print("|---|" + "---|" * len(TIMES))
+    for preset in DISTURBANCE_PRESETS:
+        d = drift(preset, args.seeds)
+        cells = [f"{np.median(d[:, k]):.2f} / {np.percentile(d[:, k], 90):.2f}" for k in range(len(TIMES))]
+        print(f"| `{preset}` | " + " | ".join(cells) + " |")
+
+
+if __name__ == "__main__":
+    main()
