@@ -22,11 +22,11 @@ from .config import EnvConfig
 from .dynamics import PSI, STATE_DIM, V, VZ, W
 from .formation import formation_errors, slot_offsets, slot_positions
 from .observations import ObservationLayout, build_observations
-from .occupancy import OccupancyMap
+from .occupancy import MapStore, available_memory, map_memory_estimate, seen_blocks_bound
 from .onboard import OnboardView, PriorMap
 from .rewards import compute_rewards
 from .scenarios import Scenario, load_scenario, make_scenario, validate_scenario
-from .sensing import RangeSensor
+from .sensing import STATIC, RangeSensor
 from .world import _read_only, grid_frame
 
 INFO_KEYS = ("clearance", "separation", "formation_error", "target_distance", "goal_distance", "speed",
@@ -77,6 +77,7 @@ class FormationEnv(ParallelEnv):
         self.config = cfg
         self.max_cycles = cfg.episode.max_cycles
         self.n_uavs = mission.n_uavs
+        _check_memory(first, cfg, self.n_uavs)
         self.offsets = slot_offsets(mission.formation, mission.n_uavs, mission.spacing)
 
         self.possible_agents = [f"uav_{i}" for i in range(self.n_uavs)]
@@ -92,6 +93,7 @@ class FormationEnv(ParallelEnv):
         self._episode_seeds: np.random.Generator | None = None
         self.scenario: Scenario | None = None
         self._snapshot: SimpleNamespace | None = None            # see _onboard_snapshot
+        self._map_store: MapStore | None = None                  # the onboard maps, cleared by every reset
         self.world = None
         self._renderer = None
 
@@ -154,9 +156,13 @@ class FormationEnv(ParallelEnv):
         self.wind = np.zeros((n, 3))
         self.step_count = 0
         self.success = False
-        self._stamp = np.zeros(self.world.shape, np.int32)
-        self.maps = [OccupancyMap(self.world.origin, self.world.shape, self.world.res, cfg.map, stamp=self._stamp)
-                     for _ in range(n)]
+        w = self.world
+        if self._map_store is not None and self._map_store.fits(w.origin, w.shape, w.res, cfg.map, n):
+            self._map_store.clear()
+        else:
+            self._map_store = MapStore(w.origin, w.shape, w.res, cfg.map, n)
+            self._map_views = [m.read_only() for m in self._map_store.maps]
+        self.maps = self._map_store.maps
         self._sense()
         self.agents = list(self.possible_agents)
         slots = self._true_slots()
@@ -262,8 +268,8 @@ class FormationEnv(ParallelEnv):
     def _sense(self):
         scan = self.sensor.scan(self.world.occupied, self.world.origin, self.world.res, self.states[:, :3],
                                 self.states[:, PSI], self.step_count, self.config.uav.r_uav, self._sensor_rng)
-        for i in np.flatnonzero(self.active):
-            self.maps[i].integrate_scan(self.states[i, :3], scan.endpoints[i], scan.kind[i])
+        live = np.flatnonzero(self.active)
+        self._map_store.integrate(live, self.states[live, :3], scan.endpoints[live], scan.kind[live] == STATIC)
         self.last_scan = scan
 
     def _clearance(self) -> np.ndarray:
@@ -291,8 +297,8 @@ class FormationEnv(ParallelEnv):
     def _observe(self) -> dict:
         targets = self._broadcast_slots()
         targets[0] = self.goal
-        obs = build_observations(self.layout, self.config, self.states, targets, 0, self.broadcast, self.maps,
-                                 self.present)
+        obs = build_observations(self.layout, self.config, self.states, targets, 0, self.broadcast,
+                                 self._map_store, self.present)
         return {a: obs[i] for i, a in enumerate(self.possible_agents)}
 
     def _infos(self, clearance, separation, ferr, target_dist, truncated: bool) -> dict:
@@ -343,7 +349,7 @@ class FormationEnv(ParallelEnv):
                 key=self.broadcast, states=copy(self.states), broadcast=copy(self.broadcast),
                 slots=copy(self._broadcast_slots()), goal=copy(self.goal), offsets=copy(self.offsets),
                 others=copy(others), neighbour_states=copy(self.broadcast[others]),
-                neighbour_alive=copy((self.active & self.present)[others]), maps=[m.read_only() for m in self.maps],
+                neighbour_alive=copy((self.active & self.present)[others]), maps=self._map_views,
                 bounds_lo=copy(self.scenario.bounds_lo), bounds_hi=copy(self.scenario.bounds_hi))
             self._snapshot = snap
         return snap
@@ -376,6 +382,23 @@ class FormationEnv(ParallelEnv):
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+
+
+def _check_memory(scn: Scenario, cfg: EnvConfig, n: int) -> None:
+    """ValueError if the ground-truth raster and n onboard maps may not fit in the memory available.
+
+    The maps' share is an upper bound: every UAV flies max_cycles steps at v_max and its sensor
+    touches every block within r_max of its path (``seen_blocks_bound``)."""
+    origin, shape = grid_frame(scn.bounds_lo, scn.bounds_hi, scn.resolution)
+    u = cfg.uav
+    seen = seen_blocks_bound(cfg.sensor.r_max, u.v_max * u.dt * cfg.episode.max_cycles, scn.resolution)
+    need = math.prod(shape) + map_memory_estimate(shape, n, seen)
+    have = available_memory()
+    if need > have:
+        raise ValueError(f"n_uavs={n} at map resolution {scn.resolution:g} m over a {shape[0]}x{shape[1]}x{shape[2]} "
+                         f"voxel world needs an estimated {need / 2**30:.2f} GiB, but only {have / 2**30:.2f} GiB is "
+                         "available; use fewer UAVs, a coarser resolution, a shorter episode.max_cycles or "
+                         "sensor.r_max, or free memory")
 
 
 def _read_only_copy(a) -> np.ndarray:

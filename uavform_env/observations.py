@@ -10,12 +10,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from gymnasium import spaces
 
 from .config import EnvConfig
 from .dynamics import PSI, VZ, W, V, Z
-from .polar_histogram import histogram_shape, primary_histogram, weight_constants
+from .occupancy import MapArrays, MapStore, occupied_cells, voxel_logodds
+from .polar_histogram import _primary_kernel, histogram_shape, weight_constants
 
 
 @dataclass(frozen=True)
@@ -86,12 +88,13 @@ def _body(dxy: np.ndarray, psi: np.ndarray) -> np.ndarray:
 
 
 def build_observations(layout: ObservationLayout, cfg: EnvConfig, states: np.ndarray, targets: np.ndarray,
-                       leader_index: int, broadcast: np.ndarray, maps, neighbour_ok: np.ndarray) -> np.ndarray:
+                       leader_index: int, broadcast: np.ndarray, maps: MapStore, neighbour_ok: np.ndarray) -> np.ndarray:
     """Observations (N, size) float32 of all UAVs.
 
     ``states`` are the true own states, ``broadcast`` the neighbours' broadcast states (one cycle
-    old), ``targets`` (N, 3) each UAV's goal or slot, ``maps`` the onboard maps, ``neighbour_ok``
-    (N,) which UAVs still broadcast (a removed UAV does not).
+    old), ``targets`` (N, 3) each UAV's goal or slot, ``maps`` the store of the onboard maps (map i
+    is UAV i's), ``neighbour_ok`` (N,) which UAVs still broadcast (a removed UAV does not). The map
+    features of all UAVs come from one numba call each.
     """
     u, oc = cfg.uav, cfg.observation
     n = states.shape[0]
@@ -125,16 +128,16 @@ def build_observations(layout: ObservationLayout, cfg: EnvConfig, states: np.nda
         cell = math.radians(oc.histogram_cell_deg)
         r_e = u.r_uav + u.r_safe + cfg.map.resolution
         a, b = weight_constants(2.0, oc.histogram_radius, r_e)
-        hist = out[:, layout.slice("obstacle_histogram")]
-        for i in range(n):
-            centres, probs = maps[i].occupied_in_sphere(states[i, :3], oc.histogram_radius)
-            h, _ = primary_histogram(centres, probs, np.full(len(probs), r_e), states[i, :3], cell,
-                                     oc.histogram_radius, a, b, azimuth_ref=psi[i])
-            hist[i] = -np.expm1(-h.ravel())
+        n_e, n_z = histogram_shape(cell)
+        h = np.zeros((n, n_e, n_z))
+        leaves = maps.levels[0]
+        _histograms(leaves.tables, leaves.values, leaves.bits, leaves.counts, leaves.key0, leaves.shape, maps.res,
+                    np.ascontiguousarray(states[:, :3]), np.ascontiguousarray(psi), float(oc.histogram_radius),
+                    float(r_e), cell, n_e, n_z, a, b, h)
+        out[:, layout.slice("obstacle_histogram")] = -np.expm1(-h.reshape(n, -1))
     if oc.include_crop:
-        crop = out[:, layout.slice("map_crop")]
-        for i in range(n):
-            crop[i] = map_crop(maps[i], states[i, :3], oc.crop_level, oc.crop_cells, oc.crop_cells_z).ravel()
+        out[:, layout.slice("map_crop")] = map_crops(maps, states[:, :3], oc.crop_level, oc.crop_cells,
+                                                     oc.crop_cells_z).reshape(n, -1)
     np.clip(out, layout.low, layout.high, out=out)
     return out
 
@@ -164,23 +167,38 @@ def _neighbour_features(block, states, broadcast, neighbour_ok, k, rng_max, v_ma
         feats[~present, slot, :] = 0.0
 
 
-def map_crop(occ_map, center: np.ndarray, level: int, cells: int, cells_z: int) -> np.ndarray:
-    """Occupancy probabilities of a world-aligned block of octree-level cells around ``center``.
+@numba.njit(cache=True)
+def _histograms(tables, values, bits, counts, key0, shape, res, positions, psi, radius, r_e, cell, n_e, n_z, a, b, out):
+    """out[m] += the body-frame primary polar histogram of map m's occupied voxels within ``radius``."""
+    for m in range(positions.shape[0]):
+        centres, probs = occupied_cells(tables, values, bits, counts, m, key0, shape, res, positions[m], radius, False)
+        _primary_kernel(centres, probs, np.full(probs.shape[0], r_e), positions[m], cell, n_e, n_z, radius, a, b,
+                        False, psi[m], out[m])
+
+
+def map_crops(maps: MapStore, centers: np.ndarray, level: int, cells: int, cells_z: int) -> np.ndarray:
+    """Occupancy probabilities (N, cells, cells, cells_z) of a world-aligned block of octree-level cells
+    around each map i's ``centers[i]``.
 
     Unknown cells read 0.5; cells outside the map read 0.5 as well (nothing is known there).
     """
-    lvl_origin, lvl_res, grid = occ_map.level(level)
-    idx = np.floor((np.asarray(center) - lvl_origin) / lvl_res).astype(np.int64)
+    n = centers.shape[0]
+    lv = maps.level_blocks(level, np.arange(n))
+    lvl_res = maps.res * 2 ** level
+    idx = np.floor((np.asarray(centers) - lv.key0 * lvl_res) / lvl_res).astype(np.int64)
     lo = idx - np.array([cells // 2, cells // 2, cells_z // 2])
-    shape = np.array([cells, cells, cells_z])
-    out = np.full(tuple(shape), np.nan, np.float32)
-    src_lo = np.maximum(lo, 0)
-    src_hi = np.minimum(lo + shape, grid.shape)
-    if np.all(src_hi > src_lo):
-        dst_lo = src_lo - lo
-        dst_hi = dst_lo + (src_hi - src_lo)
-        out[dst_lo[0]:dst_hi[0], dst_lo[1]:dst_hi[1], dst_lo[2]:dst_hi[2]] = \
-            grid[src_lo[0]:src_hi[0], src_lo[1]:src_hi[1], src_lo[2]:src_hi[2]]
+    out = np.empty((n, cells, cells, cells_z), np.float32)
+    _gather(lv.tables, lv.values, lv.key0, lv.shape, lo, out)
     prob = 1.0 / (1.0 + np.exp(-out))
     return np.where(np.isnan(out), 0.5, prob).astype(np.float32)
 
+
+@numba.njit(cache=True)
+def _gather(tables, values, key0, shape, lo, out):
+    """out[m] = map m's log-odds of the cells lo[m] + (0..) (NaN where unknown or outside)."""
+    for m in range(out.shape[0]):
+        arrays = MapArrays(key0, shape, tables[m], values)
+        for i in range(out.shape[1]):
+            for j in range(out.shape[2]):
+                for k in range(out.shape[3]):
+                    out[m, i, j, k] = voxel_logodds(arrays, lo[m, 0] + i, lo[m, 1] + j, lo[m, 2] + k)
