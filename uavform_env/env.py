@@ -27,7 +27,9 @@ from .onboard import OnboardView, PriorMap
 from .rewards import compute_rewards
 from .scenarios import Scenario, load_scenario, make_scenario, validate_scenario
 from .sensing import STATIC, RangeSensor
-from .world import _read_only, grid_frame
+from .world import World, _read_only, grid_frame
+
+_LAYOUTS_KEPT = 2  # layouts (scenario, raster, prior) an env keeps for its next resets
 
 INFO_KEYS = ("clearance", "separation", "formation_error", "target_distance", "goal_distance", "speed",
              "altitude", "crashed", "success", "step", "TimeLimit.truncated")
@@ -94,6 +96,7 @@ class FormationEnv(ParallelEnv):
         self.scenario: Scenario | None = None
         self._snapshot: SimpleNamespace | None = None            # see _onboard_snapshot
         self._map_store: MapStore | None = None                  # the onboard maps, cleared by every reset
+        self._layouts: dict = {}                                 # see _layout
         self.world = None
         self._renderer = None
 
@@ -133,13 +136,10 @@ class FormationEnv(ParallelEnv):
         self._wind_rng = np.random.default_rng(wind_ss)
         layout_seed = self.layout_seed if self.layout_seed is not None else (
             seed if seed is not None else int(root.generate_state(1)[0]))
-        scn = self._scenario_for(layout_seed)
+        scn, world, prior = self._layout(layout_seed)
         cfg = self.config
-        world = self.world if scn == self.scenario else scn.build_world()
         validate_scenario(scn, cfg.uav, cfg.formation.z_ref, world)
-        if world is not self.world:
-            self.scenario, self.world = scn, world
-            self._prior = self._build_prior()
+        self.scenario, self.world, self._prior = scn, world, prior
         m = scn.mission
         self.goal = np.asarray(m.goal, dtype=np.float64)
 
@@ -175,13 +175,28 @@ class FormationEnv(ParallelEnv):
         infos = self._infos(clearance, self._separations(), ferr, self._target_dist, truncated=False)
         return obs, infos
 
-    def _build_prior(self) -> PriorMap:
+    def _layout(self, seed: int) -> tuple[Scenario, World, PriorMap]:
+        """Scenario, ground truth and prior map of a layout seed; the two most recent layouts are kept, so
+        resetting to a layout seen last (or the one before) builds nothing."""
+        key = None if self._fixed_scenario is not None else seed
+        cache = self._layouts
+        if key in cache:
+            cache[key] = cache.pop(key)                          # most recently used last
+        else:
+            scn = self._scenario_for(seed)
+            world = scn.build_world()
+            cache[key] = (scn, world, self._build_prior(scn, world))
+            while len(cache) > _LAYOUTS_KEPT:
+                del cache[next(iter(cache))]
+        return cache[key]
+
+    def _build_prior(self, scn: Scenario, world: World) -> PriorMap:
         ep = self.config.episode
         if ep.prior_map == "heightmap":
-            origin_xy, res, heights = self.world.heightmap(ep.prior_resolution)
+            origin_xy, res, heights = world.heightmap(ep.prior_resolution)
         else:
             res = ep.prior_resolution
-            origin_xy, shape = grid_frame(self.scenario.bounds_lo[:2], self.scenario.bounds_hi[:2], res)
+            origin_xy, shape = grid_frame(scn.bounds_lo[:2], scn.bounds_hi[:2], res)
             heights = np.zeros(shape, np.float32)
         heights = _read_only(np.array(heights, np.float32))
         return PriorMap(np.asarray(origin_xy, float), float(res), heights, ep.prior_map)

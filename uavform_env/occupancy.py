@@ -588,16 +588,18 @@ def _integrate_one(tables, values, bits, counts, owner, used, marks, dirty, key0
         if full:
             break
         c = ray_keys(ox, oy, oz, ends[r, 0], ends[r, 1], ends[r, 2], res, keys)
+        bi, bj, bk, b = -1, -1, -1, np.int64(-1)  # consecutive voxels of a ray mostly share a block
         for q in range(c):
             i, j, k = keys[q, 0] - kx0, keys[q, 1] - ky0, keys[q, 2] - kz0
             if (i | j | k) >= 0 and i < nx and j < ny and k < nz:
-                b = np.int64(tables[m, i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT])
-                if b < 0:
-                    b = _new_block(tables, values, bits, counts, owner, used, m, i >> BLOCK_SHIFT,
-                                   j >> BLOCK_SHIFT, k >> BLOCK_SHIFT)
+                if (i >> BLOCK_SHIFT) != bi or (j >> BLOCK_SHIFT) != bj or (k >> BLOCK_SHIFT) != bk:
+                    bi, bj, bk = i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT
+                    b = np.int64(tables[m, bi, bj, bk])
                     if b < 0:
-                        full = True
-                        break
+                        b = _new_block(tables, values, bits, counts, owner, used, m, bi, bj, bk)
+                        if b < 0:
+                            full = True
+                            break
                 v = _offset(i, j, k)
                 if marks[b, v] == _UNTOUCHED:
                     marks[b, v] = _MISS
