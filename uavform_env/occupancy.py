@@ -169,7 +169,7 @@ class MapStore:
             raise ValueError(f"hit: expected a bool array of shape {ends.shape[:2]}, got {hit.dtype} {hit.shape}")
         leaves = self.levels[0]
         done = 0
-        while done < idx.size:  # a full pool stops the kernel before the map it cannot finish
+        while done < idx.size:  # the kernel stops before a map that might not fit in the pool
             done = _integrate_maps(*leaves.pool(), leaves.marks, self.dirty, self.key0, leaves.shape, self.res, idx,
                                    o, ends, hit, self.l_hit, self.l_miss, self.l_min, self.l_max, self.l_occ, done)
             if done < idx.size:
@@ -481,8 +481,7 @@ def _clear(tables, owner, used):
 def _new_block(tables, values, bits, counts, owner, used, m, bi, bj, bk):
     """Allocate block (bi, bj, bk) of map m (all unknown) from the pool; -1 if the pool is full.
 
-    Callers look ``tables`` up first and call this only on a miss: a call that passes arrays costs
-    reference counting, too much for the per-voxel path."""
+    Callers look ``tables`` up first and call this only on a miss."""
     b = used[0]
     if b >= values.shape[0]:
         return np.int64(-1)
@@ -504,9 +503,10 @@ def _offset(i, j, k):
 
 
 @numba.njit(cache=True, inline="always")
-def _update_voxel(values, bits, counts, b, v, update, l_min, l_max, l_occ):
-    """Add one log-odds update to voxel v of block b in float32, clamp, keep the block's summaries."""
-    old = values[b, v]
+def _update_voxel(values, bits, counts, f, update, l_min, l_max, l_occ):
+    """Add one log-odds update to pooled voxel f (flat: block * 512 + offset) in float32, clamp, keep the
+    block's summaries (``values``, ``bits`` flat views of the pool)."""
+    old = values[f]
     was_occupied = old >= l_occ
     if np.isnan(old):
         old = np.float32(0.0)
@@ -515,35 +515,47 @@ def _update_voxel(values, bits, counts, b, v, update, l_min, l_max, l_occ):
         new = l_min
     elif new > l_max:
         new = l_max
-    values[b, v] = new
+    values[f] = new
     is_occupied = new >= l_occ
     if is_occupied != was_occupied:
-        counts[b] += 1 if is_occupied else -1
-        bits[b, v >> BLOCK_SHIFT] ^= np.uint8(1 << (v & _MASK))
+        counts[f >> (3 * BLOCK_SHIFT)] += 1 if is_occupied else -1
+        bits[f >> BLOCK_SHIFT] ^= np.uint8(1 << (f & _MASK))
 
 
 @numba.njit(cache=True)
 def _integrate_maps(tables, values, bits, counts, owner, used, marks, dirty, key0, shape, res, indices, origins,
                     endpoints, hit, l_hit, l_miss, l_min, l_max, l_occ, start):
-    """Integrate scan q into map indices[q] for q = start, ...; return the first q not done (the pool
-    was full: its marks are undone, the blocks it allocated stay unknown), or len(indices)."""
+    """Integrate scan q into map indices[q] for q = start, ...; return the first q not done because the
+    pool might run out of blocks during it (grow the pool and call again from there), or len(indices)."""
+    inv_res = 1.0 / res
     for q in range(start, indices.shape[0]):
-        if not _integrate_one(tables, values, bits, counts, owner, used, marks, dirty[indices[q]], key0, shape,
-                              res, indices[q], origins[q], endpoints[q], hit[q], l_hit, l_miss, l_min, l_max, l_occ):
+        # a ray of K keys enters at most K / 8 + 4 blocks (a block change needs 8 steps along one axis)
+        need = 0
+        o = origins[q]
+        ox, oy, oz = np.float64(np.float32(o[0])), np.float64(np.float32(o[1])), np.float64(np.float32(o[2]))
+        for r in range(endpoints.shape[1]):
+            e = endpoints[q, r]
+            need += ray_key_bound(ox, oy, oz, np.float64(np.float32(e[0])), np.float64(np.float32(e[1])),
+                                  np.float64(np.float32(e[2])), inv_res) // (1 << BLOCK_SHIFT) + 5
+        if used[0] + need > values.shape[0]:
             return q
+        _integrate_one(tables, values, bits, counts, owner, used, marks, dirty[indices[q]], key0, shape, res,
+                       indices[q], origins[q], endpoints[q], hit[q], l_hit, l_miss, l_min, l_max, l_occ)
     return indices.shape[0]
 
 
 @numba.njit(cache=True)
 def _integrate_one(tables, values, bits, counts, owner, used, marks, dirty, key0, shape, res, m, origin, endpoints,
                    hit, l_hit, l_miss, l_min, l_max, l_occ):
-    """OctoMap's computeUpdate + updateNode for one map (see ``OccupancyMap.integrate``).
+    """OctoMap's computeUpdate + updateNode for one map (see ``OccupancyMap.integrate``); the pool has room.
 
-    Hit voxels are marked first, then every unmarked voxel a ray crosses is marked a miss; finally
-    each marked voxel gets its one update and its mark is cleared. Returns False, with nothing
-    updated, if the pool ran out of blocks.
+    Hit voxels are marked first; each ray then applies a miss to every unmarked voxel it crosses
+    and marks it; finally the hits are applied and all marks cleared.
     """
     nx, ny, nz = shape[0], shape[1], shape[2]
+    flat_values = values.reshape(values.size)
+    flat_marks = marks.reshape(marks.size)
+    flat_bits = bits.reshape(bits.size)
     inv_res = 1.0 / res
     n_rays = endpoints.shape[0]
     # OctoMap's point3d is float32: round the origin and the endpoints first.
@@ -560,11 +572,9 @@ def _integrate_one(tables, values, bits, counts, owner, used, marks, dirty, key0
         bound = ray_key_bound(ox, oy, oz, ends[r, 0], ends[r, 1], ends[r, 2], inv_res)
         capacity += bound + 1
         longest = max(longest, bound)
-    touched_b = np.empty(capacity, np.int64)
-    touched_v = np.empty(capacity, np.int64)
+    touched = np.empty(capacity, np.int64)
     keys = np.empty((longest, 3), np.int64)
     n = 0
-    full = False
     for r in range(n_rays):  # occupied endpoints first: a hit beats a miss of the same scan
         if hit[r]:
             i = coord_key(ends[r, 0], inv_res) - key0[0]
@@ -572,51 +582,39 @@ def _integrate_one(tables, values, bits, counts, owner, used, marks, dirty, key0
             k = coord_key(ends[r, 2], inv_res) - key0[2]
             if 0 <= i < nx and 0 <= j < ny and 0 <= k < nz:
                 b = np.int64(tables[m, i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT])
-                if b < 0:
-                    b = _new_block(tables, values, bits, counts, owner, used, m, i >> BLOCK_SHIFT,
-                                   j >> BLOCK_SHIFT, k >> BLOCK_SHIFT)
-                    if b < 0:
-                        full = True
-                        break
-                v = _offset(i, j, k)
-                if marks[b, v] == _UNTOUCHED:
-                    marks[b, v] = _HIT
-                    touched_b[n], touched_v[n] = b, v
+                if b < 0:  # the table is read inline: a call passing the pool's arrays per voxel costs refcounting
+                    b = _new_block(tables, values, bits, counts, owner, used, m, i >> BLOCK_SHIFT, j >> BLOCK_SHIFT,
+                                   k >> BLOCK_SHIFT)
+                f = (b << (3 * BLOCK_SHIFT)) | _offset(i, j, k)
+                if flat_marks[f] == _UNTOUCHED:
+                    flat_marks[f] = _HIT
+                    touched[n] = f
                     n += 1
     kx0, ky0, kz0 = key0[0], key0[1], key0[2]
     for r in range(n_rays):  # misses, one per voxel and scan
-        if full:
-            break
         c = ray_keys(ox, oy, oz, ends[r, 0], ends[r, 1], ends[r, 2], res, keys)
-        bi, bj, bk, b = -1, -1, -1, np.int64(-1)  # consecutive voxels of a ray mostly share a block
         for q in range(c):
             i, j, k = keys[q, 0] - kx0, keys[q, 1] - ky0, keys[q, 2] - kz0
             if (i | j | k) >= 0 and i < nx and j < ny and k < nz:
-                if (i >> BLOCK_SHIFT) != bi or (j >> BLOCK_SHIFT) != bj or (k >> BLOCK_SHIFT) != bk:
-                    bi, bj, bk = i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT
-                    b = np.int64(tables[m, bi, bj, bk])
-                    if b < 0:
-                        b = _new_block(tables, values, bits, counts, owner, used, m, bi, bj, bk)
-                        if b < 0:
-                            full = True
-                            break
-                v = _offset(i, j, k)
-                if marks[b, v] == _UNTOUCHED:
-                    marks[b, v] = _MISS
-                    touched_b[n], touched_v[n] = b, v
+                b = np.int64(tables[m, i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT])
+                if b < 0:  # the table is read inline: a call passing the pool's arrays per voxel costs refcounting
+                    b = _new_block(tables, values, bits, counts, owner, used, m, i >> BLOCK_SHIFT, j >> BLOCK_SHIFT,
+                                   k >> BLOCK_SHIFT)
+                f = (b << (3 * BLOCK_SHIFT)) | _offset(i, j, k)
+                if flat_marks[f] == _UNTOUCHED:
+                    flat_marks[f] = _MISS
+                    touched[n] = f
                     n += 1
+                    _update_voxel(flat_values, flat_bits, counts, f, l_miss, l_min, l_max, l_occ)
     for q in range(n):
-        b, v = touched_b[q], touched_v[q]
-        if not full:
-            _update_voxel(values, bits, counts, b, v, l_hit if marks[b, v] == _HIT else l_miss, l_min, l_max, l_occ)
-        marks[b, v] = _UNTOUCHED
-    if full:
-        return False
+        f = touched[q]
+        if flat_marks[f] == _HIT:
+            _update_voxel(flat_values, flat_bits, counts, f, l_hit, l_min, l_max, l_occ)
+        flat_marks[f] = _UNTOUCHED
     if n > 0:  # segments stay in the box of their end keys (+1 voxel of DDA drift): the changed region
         for a in range(3):
             dirty[a] = min(dirty[a], max(lo[a] - 1, 0))
             dirty[a + 3] = max(dirty[a + 3], min(hi[a] + 1, shape[a] - 1))
-    return True
 
 
 @numba.njit(cache=True)
