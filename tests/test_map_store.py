@@ -130,6 +130,14 @@ def test_clear_reuses_the_pool_and_forgets_everything():
     for a, b in zip(first, again):
         np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(first_level, again_level)
+    store.clear((-2.0, 0.0, 0.0), (40, 20, 15))               # another layout's grid: new tables, the same pool
+    assert store.levels[0].values is pool and store.maps[0].shape == (40, 20, 15)
+    assert store.maps[1].n_blocks == 0 and np.allclose(store.maps[1].origin, (-2.0, 0.0, 0.0))
+    o, ends, hit = scans[0]
+    store.maps[1].integrate(o, ends, hit)
+    fresh = OccupancyMap((-2.0, 0.0, 0.0), (40, 20, 15), RES)
+    fresh.integrate(o, ends, hit)
+    np.testing.assert_array_equal(store.maps[1].logodds, fresh.logodds)
 
 
 def test_lazy_pyramid_of_one_map_equals_a_fresh_one():

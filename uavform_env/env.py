@@ -157,8 +157,9 @@ class FormationEnv(ParallelEnv):
         self.step_count = 0
         self.success = False
         w = self.world
-        if self._map_store is not None and self._map_store.fits(w.origin, w.shape, w.res, cfg.map, n):
-            self._map_store.clear()
+        store = self._map_store
+        if store is not None and (store.res, store.cfg, store.n_maps) == (w.res, cfg.map, n):
+            store.clear(w.origin, w.shape)                       # a new layout's grid, the same block pool
         else:
             self._map_store = MapStore(w.origin, w.shape, w.res, cfg.map, n)
             self._map_views = [m.read_only() for m in self._map_store.maps]

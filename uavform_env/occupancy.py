@@ -45,7 +45,7 @@ BLOCK_BYTES = BLOCK_VOXELS * 4 + BLOCK_VOXELS + BLOCK_VOXELS // 8 + 4 + 8
 # straddles the origin and is not a level).
 MAX_LEVEL = 15
 _UNTOUCHED, _MISS, _HIT = 0, 1, 2  # marks during one integrate call (all-zero between calls)
-_FIRST_CAPACITY = 256  # pool blocks per map allocated up front; the pool grows by half when it runs out
+_FIRST_CAPACITY = 1024  # pool blocks per map reserved up front (untouched pages cost no RSS); grows by half
 
 
 class MapArrays(NamedTuple):
@@ -89,12 +89,17 @@ class _Blocks:
         self.counts = np.empty(capacity, np.int32)
         self.owner = np.empty(capacity, np.int64)
 
-    def grow(self) -> None:
-        """Grow the pool by half (blocks keep their indices)."""
+    def grow(self, at_least: int = 0) -> None:
+        """Grow the pool by half, or to ``at_least`` blocks (blocks keep their indices)."""
         old, n = (self.values, self.marks, self.bits, self.counts, self.owner), int(self.used[0])
-        self._allocate(self.values.shape[0] + max(16, self.values.shape[0] // 2))
+        self._allocate(max(at_least, self.values.shape[0] + max(16, self.values.shape[0] // 2)))
         for new, prev in zip((self.values, self.marks, self.bits, self.counts, self.owner), old):
             new[:n] = prev[:n]
+
+    def adopt_pool(self, other: _Blocks) -> None:
+        """Take over the (emptied) pool arrays of ``other``."""
+        self.values, self.marks, self.bits, self.counts, self.owner = (other.values, other.marks, other.bits,
+                                                                       other.counts, other.owner)
 
     def pool(self) -> tuple:
         """The arguments every block kernel takes, in order."""
@@ -125,8 +130,7 @@ class MapStore:
             raise ValueError(f"cfg: expected a MapConfig, got {type(cfg).__name__}")
         if isinstance(n_maps, bool) or not isinstance(n_maps, (int, np.integer)) or n_maps < 1:
             raise ValueError(f"n_maps={n_maps!r}: expected an integer >= 1")
-        self.key0 = grid_origin_key(origin, resolution)
-        self.shape = _check_shape(shape)
+        grid_origin_key(origin, resolution)                      # checks the resolution first
         self.res = float(resolution)
         self.cfg = cfg
         self.n_maps = int(n_maps)
@@ -134,21 +138,30 @@ class MapStore:
         self.l_hit, self.l_miss = f32(cfg.logodds(cfg.p_hit)), f32(cfg.logodds(cfg.p_miss))
         self.l_min, self.l_max = f32(cfg.logodds(cfg.p_min)), f32(cfg.logodds(cfg.p_max))
         self.l_occ = f32(cfg.logodds(cfg.p_occ))
-        self.n_levels = 1
-        while self.n_levels <= MAX_LEVEL and max(_level_shape(self.key0, self.shape, self.n_levels - 1)) > 1:
-            self.n_levels += 1
-        self.levels = [_Blocks(self.key0, self.shape, self.n_maps, _FIRST_CAPACITY * self.n_maps)]
-        self.dirty = np.tile(_empty_region(), (self.n_maps, 1))  # per map: leaves changed since its pyramid refresh
+        self.levels = []
+        self.dirty = np.empty((self.n_maps, 6), np.int64)  # per map: leaves changed since its pyramid refresh
+        self.clear(origin, shape)
         self.maps = [OccupancyMap._view(self, i) for i in range(self.n_maps)]
 
-    def fits(self, origin, shape, resolution: float, cfg: MapConfig, n_maps: int) -> bool:
-        """Whether this store has the given frame, model and size (so ``clear`` can replace a new one)."""
-        return (self.res == float(resolution) and self.shape == _check_shape(shape) and self.cfg == cfg
-                and self.n_maps == n_maps and np.array_equal(self.key0, grid_origin_key(origin, resolution)))
-
-    def clear(self) -> None:
-        """Forget every observation of every map; the block pool is kept for reuse."""
-        self.levels[0].clear()
+    def clear(self, origin=None, shape=None) -> None:
+        """Forget every observation of every map, keeping the block pool for reuse; with ``origin`` and
+        ``shape``, the maps cover that grid from now on (new block tables, the same pool)."""
+        same = self.levels and (origin is None or (np.array_equal(grid_origin_key(origin, self.res), self.key0)
+                                                   and _check_shape(shape) == self.shape))
+        if same:
+            self.levels[0].clear()                               # unlinks the used blocks only
+        else:
+            self.key0 = grid_origin_key(origin, self.res)
+            self.shape = _check_shape(shape)
+            self.n_levels = 1
+            while self.n_levels <= MAX_LEVEL and max(_level_shape(self.key0, self.shape, self.n_levels - 1)) > 1:
+                self.n_levels += 1
+            leaves = _Blocks(self.key0, self.shape, self.n_maps, 0)
+            if self.levels:
+                leaves.adopt_pool(self.levels[0])
+            else:
+                leaves.grow(_FIRST_CAPACITY * self.n_maps)
+            self.levels = [leaves]
         del self.levels[1:]
         self.dirty[:] = _empty_region()
 
