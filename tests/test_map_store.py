@@ -176,9 +176,9 @@ def test_env_reset_clears_the_maps_without_reallocating():
 
 def test_env_refuses_a_swarm_that_will_not_fit_in_memory(monkeypatch):
     env_module = importlib.import_module("uavform_env.env")   # the package's `env` attribute is a function
-    monkeypatch.setattr(env_module, "available_memory", lambda: 50 * 2**20)
+    monkeypatch.setattr(env_module, "available_memory", lambda: 10 * 2**20)
     with pytest.raises(ValueError, match=r"n_uavs=5 at map resolution 0.2 m .* needs an estimated [0-9.]+ GiB, "
-                                         r"but only 0.05 GiB is available; use fewer UAVs, a coarser resolution"):
+                                         r"but only 0.01 GiB is available; use fewer UAVs, a coarser resolution"):
         FormationEnv("forest", n_uavs=5)
     monkeypatch.setattr(env_module, "available_memory", lambda: 64 * 2**30)
     FormationEnv("forest", n_uavs=5)

@@ -30,6 +30,7 @@ from .sensing import STATIC, RangeSensor
 from .world import World, _read_only, grid_frame
 
 _LAYOUTS_KEPT = 2  # layouts (scenario, raster, prior) an env keeps for its next resets
+_DETOUR = 2.0      # the memory estimate's flight length over the straight start-goal line
 
 INFO_KEYS = ("clearance", "separation", "formation_error", "target_distance", "goal_distance", "speed",
              "altitude", "crashed", "success", "step", "TimeLimit.truncated")
@@ -401,20 +402,20 @@ class FormationEnv(ParallelEnv):
 
 
 def _check_memory(scn: Scenario, cfg: EnvConfig, n: int) -> None:
-    """ValueError if the ground-truth raster and n onboard maps may not fit in the memory available.
+    """ValueError if the ground-truth raster and n onboard maps will not fit in the memory available.
 
-    The maps' share is an upper bound: every UAV flies max_cycles steps at v_max and its sensor
-    touches every block within r_max of its path (``seen_blocks_bound``)."""
+    Each map is expected to hold the blocks within r_max of a flight _DETOUR times as long as the
+    straight line from start to goal (or of the whole episode at v_max, if that is shorter), as
+    ``seen_blocks_bound`` counts them; maps that see more grow their pools as they go."""
     origin, shape = grid_frame(scn.bounds_lo, scn.bounds_hi, scn.resolution)
-    u = cfg.uav
-    seen = seen_blocks_bound(cfg.sensor.r_max, u.v_max * u.dt * cfg.episode.max_cycles, scn.resolution)
-    need = math.prod(shape) + map_memory_estimate(shape, n, seen)
+    u, m = cfg.uav, scn.mission
+    path = min(u.v_max * u.dt * cfg.episode.max_cycles, _DETOUR * math.dist(m.start, m.goal))
+    need = math.prod(shape) + map_memory_estimate(shape, n, seen_blocks_bound(cfg.sensor.r_max, path, scn.resolution))
     have = available_memory()
     if need > have:
         raise ValueError(f"n_uavs={n} at map resolution {scn.resolution:g} m over a {shape[0]}x{shape[1]}x{shape[2]} "
                          f"voxel world needs an estimated {need / 2**30:.2f} GiB, but only {have / 2**30:.2f} GiB is "
-                         "available; use fewer UAVs, a coarser resolution, a shorter episode.max_cycles or "
-                         "sensor.r_max, or free memory")
+                         "available; use fewer UAVs, a coarser resolution, a shorter sensor.r_max or free memory")
 
 
 def _read_only_copy(a) -> np.ndarray:
