@@ -360,7 +360,7 @@ class FormationEnv(ParallelEnv):
         snap = self._snapshot
         if snap is None or snap.key is not self.broadcast:
             n = self.n_uavs
-            others = np.array([[j for j in range(n) if j != i] for i in range(n)], dtype=np.int64).reshape(n, n - 1)
+            others = np.tile(np.arange(n, dtype=np.int64), (n, 1))[~np.eye(n, dtype=bool)].reshape(n, n - 1)
             copy = _read_only_copy
             snap = SimpleNamespace(
                 key=self.broadcast, states=copy(self.states), broadcast=copy(self.broadcast),
