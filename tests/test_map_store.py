@@ -103,7 +103,7 @@ def test_memory_follows_the_seen_volume():
     assert 1 <= m.n_blocks <= 4                                # three 1 m rays touch at most a few 8^3 blocks
     assert m.label(ends).tolist() == [1, 1, 1]
     store = m._store
-    assert store.nbytes < 0.02 * math.prod(shape) * 4         # tables (1/512 of the voxels) and a small pool
+    assert store.nbytes < 0.02 * math.prod(shape) * 4         # a table (1/262144 of the voxels), small pools
     far = OccupancyMap((0.0, 0.0, 0.0), shape, RES)
     far.integrate(o, o + np.array([[0.0, 30.0, 0.0]]), np.array([True]))
     assert m.n_blocks < far.n_blocks <= 2 * 30 / (8 * RES) + 4  # a 30 m ray: about one block per 1.6 m
@@ -186,8 +186,11 @@ def test_env_refuses_a_swarm_that_will_not_fit_in_memory(monkeypatch):
 
 def test_memory_estimate_is_linear_in_the_maps_and_capped_by_the_grid():
     shape = (400, 200, 60)
-    grid_blocks = 50 * 25 * 8
-    one = occupancy.map_memory_estimate(shape, 1, 100)
-    assert occupancy.map_memory_estimate(shape, 7, 100) == 7 * one == 7 * (4 * grid_blocks + 100 * BLOCK_BYTES)
-    assert occupancy.map_memory_estimate(shape, 1, 10**9) == grid_blocks * (4 + BLOCK_BYTES)
+    grid_blocks, grid_chunks = 50 * 25 * 8, 7 * 4 * 1
+    one = occupancy.map_memory_estimate(shape, 1, 100, 3)
+    assert one == 4 * grid_chunks + 3 * occupancy.CHUNK_BYTES + 100 * BLOCK_BYTES
+    assert occupancy.map_memory_estimate(shape, 7, 100, 3) == 7 * one
+    assert occupancy.map_memory_estimate(shape, 1, 10**9, 10**9) == grid_chunks * (4 + occupancy.CHUNK_BYTES) \
+        + grid_blocks * BLOCK_BYTES
     assert occupancy.seen_blocks_bound(6.0, 0.0, RES) == (math.ceil(12.0 / 1.6) + 2) ** 3
+    assert occupancy.seen_blocks_bound(6.0, 0.0, RES, 64) == (math.ceil(12.0 / 12.8) + 2) ** 3

@@ -22,7 +22,8 @@ from .config import EnvConfig
 from .dynamics import PSI, STATE_DIM, V, VZ, W
 from .formation import formation_errors, slot_offsets, slot_positions
 from .observations import ObservationLayout, build_observations
-from .occupancy import MapStore, available_memory, map_memory_estimate, seen_blocks_bound
+from .occupancy import (BLOCK_EDGE, CHUNK_EDGE, MapStore, available_memory, map_memory_estimate,
+                        seen_blocks_bound)
 from .onboard import OnboardView, PriorMap
 from .rewards import compute_rewards
 from .scenarios import Scenario, load_scenario, make_scenario, validate_scenario
@@ -410,7 +411,8 @@ def _check_memory(scn: Scenario, cfg: EnvConfig, n: int) -> None:
     origin, shape = grid_frame(scn.bounds_lo, scn.bounds_hi, scn.resolution)
     u, m = cfg.uav, scn.mission
     path = min(u.v_max * u.dt * cfg.episode.max_cycles, _DETOUR * math.dist(m.start, m.goal))
-    need = math.prod(shape) + map_memory_estimate(shape, n, seen_blocks_bound(cfg.sensor.r_max, path, scn.resolution))
+    seen = [seen_blocks_bound(cfg.sensor.r_max, path, scn.resolution, edge) for edge in (BLOCK_EDGE, CHUNK_EDGE)]
+    need = math.prod(shape) + map_memory_estimate(shape, n, *seen)
     have = available_memory()
     if need > have:
         raise ValueError(f"n_uavs={n} at map resolution {scn.resolution:g} m over a {shape[0]}x{shape[1]}x{shape[2]} "

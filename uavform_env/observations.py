@@ -222,7 +222,7 @@ def map_crops(maps: MapStore, centers: np.ndarray, level: int, cells: int, cells
 def _gather(tables, values, key0, shape, lo, out):
     """out[m] = map m's log-odds of the cells lo[m] + (0..) (NaN where unknown or outside)."""
     for m in range(out.shape[0]):
-        arrays = MapArrays(key0, shape, tables[m], values)
+        arrays = MapArrays(key0, shape, tables[0][m], tables[1], values)
         for i in range(out.shape[1]):
             for j in range(out.shape[2]):
                 for k in range(out.shape[3]):

@@ -3,10 +3,12 @@
 Every map allocates fixed-size blocks of 8^3 float32 log-odds (NaN = never observed) on first
 touch, the voxblox way, so its memory follows what its UAV has seen rather than the world's size
 (spec (e3) allows any store with OctoMap's semantics). The maps of one environment share one
-``MapStore``: one pool of blocks and, per map, a dense table at block granularity (one int32 per
-8^3 voxels; -1 = never touched) pointing into it. A dense table is the simplest index that is O(1)
-per lookup inside numba kernels and costs 1/512 of a dense grid, so a hash table would not pay for
-its probing. ``OccupancyMap`` is one map's view of the store and carries the public API.
+``MapStore``: one pool of blocks and a two-level index, a dense table per map with one int32 per
+64^3 voxels (a chunk; -1 = never touched) pointing into a pool of chunks, each holding its 8^3
+blocks' pool indices. Two dense levels keep a lookup O(1) and branch-light inside numba kernels, and
+the per-map table costs 1/262144 of a dense grid (a one-level table, 1/512, grew as N x world: 0.75
+GB at 200 UAVs); a hash table would add probing for no gain here. ``OccupancyMap`` is one map's view
+of the store and carries the public API.
 
 Scans are integrated like ``OccupancyOcTreeBase::insertPointCloud`` (``computeUpdate`` +
 ``updateNode``): the rays' voxels come from the ported ``computeRayKeys``, every voxel is updated
@@ -39,8 +41,11 @@ from .dda import coord_key, grid_origin_key, ray_key_bound, ray_keys
 BLOCK_SHIFT = 3  # blocks of 2**3 = 8 voxels per axis
 BLOCK_VOXELS = 1 << (3 * BLOCK_SHIFT)
 _MASK = (1 << BLOCK_SHIFT) - 1
-# Bytes per pooled block: log-odds, integrate marks, row bits, occupied count, owner entry.
-BLOCK_BYTES = BLOCK_VOXELS * 4 + BLOCK_VOXELS + BLOCK_VOXELS // 8 + 4 + 8
+# Bytes per pooled block: log-odds, integrate marks, row bits, occupied count.
+BLOCK_BYTES = BLOCK_VOXELS * 4 + BLOCK_VOXELS + BLOCK_VOXELS // 8 + 4
+CHUNK_SHIFT = 2 * BLOCK_SHIFT  # log2 of a chunk's edge in voxels
+BLOCK_EDGE, CHUNK_EDGE = 1 << BLOCK_SHIFT, 1 << CHUNK_SHIFT  # edges in voxels
+CHUNK_BYTES = BLOCK_VOXELS * 4 + 8  # block entries and the owner entry
 # Deepest pyramid level: OctoMap's depth-1 nodes (tree depth 16; keys align up to 2**15, the root
 # straddles the origin and is not a level).
 MAX_LEVEL = 15
@@ -51,13 +56,14 @@ _FIRST_CAPACITY = 1024  # pool blocks per map reserved up front (untouched pages
 class MapArrays(NamedTuple):
     """One map's (one pyramid level's) arrays as numba kernels read them, through ``voxel_logodds``.
 
-    Valid until the map is next updated (the pool may grow and move). Cell (i, j, k) counts from the
+    Valid until the map is next updated (the pools may grow and move). Cell (i, j, k) counts from the
     map's lower corner ``key0`` (the local index of the former dense grid).
     """
 
     key0: np.ndarray    # (3,) int64 key of cell (0, 0, 0)
     shape: np.ndarray   # (3,) int64 cells per axis
-    table: np.ndarray   # (bx, by, bz) int32 pool block of each 8^3 block, -1 = never observed
+    top: np.ndarray     # (cx, cy, cz) int32 chunk of each 64^3 voxels, -1 = never observed
+    chunks: np.ndarray  # (C, 512) int32 pool block of each 8^3 block of a chunk, -1 = never observed
     values: np.ndarray  # (P, 512) float32 log-odds of the pool's blocks, NaN = unknown
 
 
@@ -66,55 +72,72 @@ def voxel_logodds(arrays, i, j, k):
     """float32 log-odds of cell (i, j, k) of ``arrays`` (a ``MapArrays``); NaN if unknown or outside."""
     if i < 0 or j < 0 or k < 0 or i >= arrays.shape[0] or j >= arrays.shape[1] or k >= arrays.shape[2]:
         return np.float32(np.nan)
-    b = arrays.table[i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT]
+    c = arrays.top[i >> CHUNK_SHIFT, j >> CHUNK_SHIFT, k >> CHUNK_SHIFT]
+    if c < 0:
+        return np.float32(np.nan)
+    b = arrays.chunks[c, _offset(i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT)]
     if b < 0:
         return np.float32(np.nan)
-    return arrays.values[b, (((i & _MASK) << BLOCK_SHIFT | (j & _MASK)) << BLOCK_SHIFT) | (k & _MASK)]
+    return arrays.values[b, _offset(i, j, k)]
 
 
 class _Blocks:
-    """One pyramid level of every map of a store: per-map block tables into one growing pool."""
+    """One pyramid level of every map of a store: per-map chunk tables into a chunk pool into a block pool.
+
+    ``tables`` = (top (n_maps, cx, cy, cz) int32, chunks (C, 512) int32), the block index the kernels
+    take; ``owner[c]`` is chunk c's entry in ``top`` (flat); ``used`` = (blocks, chunks) in use.
+    """
 
     def __init__(self, key0: np.ndarray, shape: tuple, n_maps: int, capacity: int):
         self.key0 = key0
         self.shape = np.asarray(shape, np.int64)
-        self.tables = np.full((n_maps,) + tuple(-(-n >> BLOCK_SHIFT) for n in shape), -1, np.int32)
-        self.used = np.zeros(1, np.int64)
-        self._allocate(capacity)
+        self.top = np.full((n_maps,) + tuple(-(-n >> CHUNK_SHIFT) for n in shape), -1, np.int32)
+        self.used = np.zeros(2, np.int64)
+        self.values = self.marks = self.bits = self.counts = self.chunks = self.owner = None
+        self.grow(capacity)
 
-    def _allocate(self, capacity: int) -> None:
-        self.values = np.empty((capacity, BLOCK_VOXELS), np.float32)
-        self.marks = np.zeros((capacity, BLOCK_VOXELS), np.uint8)
-        self.bits = np.empty((capacity, BLOCK_VOXELS >> BLOCK_SHIFT), np.uint8)
-        self.counts = np.empty(capacity, np.int32)
-        self.owner = np.empty(capacity, np.int64)
+    @property
+    def tables(self) -> tuple:
+        return self.top, self.chunks
 
     def grow(self, at_least: int = 0) -> None:
-        """Grow the pool by half, or to ``at_least`` blocks (blocks keep their indices)."""
-        old, n = (self.values, self.marks, self.bits, self.counts, self.owner), int(self.used[0])
-        self._allocate(max(at_least, self.values.shape[0] + max(16, self.values.shape[0] // 2)))
-        for new, prev in zip((self.values, self.marks, self.bits, self.counts, self.owner), old):
-            new[:n] = prev[:n]
+        """Grow the block pool by half (or to ``at_least`` blocks) and the chunk pool with it; indices stay."""
+        blocks = 0 if self.values is None else self.values.shape[0]
+        blocks = max(at_least, blocks + max(16, blocks // 2))
+        grown = (np.empty((blocks, BLOCK_VOXELS), np.float32), np.zeros((blocks, BLOCK_VOXELS), np.uint8),
+                 np.empty((blocks, BLOCK_VOXELS >> BLOCK_SHIFT), np.uint8), np.empty(blocks, np.int32),
+                 np.empty((max(16, blocks >> 3), BLOCK_VOXELS), np.int32), np.empty(max(16, blocks >> 3), np.int64))
+        if self.values is not None:
+            old = (self.values, self.marks, self.bits, self.counts, self.chunks, self.owner)
+            for new, prev, n in zip(grown, old, [self.used[0]] * 4 + [self.used[1]] * 2):
+                new[:n] = prev[:n]
+        self.values, self.marks, self.bits, self.counts, self.chunks, self.owner = grown
 
     def adopt_pool(self, other: _Blocks) -> None:
-        """Take over the (emptied) pool arrays of ``other``."""
-        self.values, self.marks, self.bits, self.counts, self.owner = (other.values, other.marks, other.bits,
-                                                                       other.counts, other.owner)
+        """Take over the (emptied) pools of ``other``."""
+        self.values, self.marks, self.bits, self.counts, self.chunks, self.owner = (
+            other.values, other.marks, other.bits, other.counts, other.chunks, other.owner)
 
     def pool(self) -> tuple:
         """The arguments every block kernel takes, in order."""
         return self.tables, self.values, self.bits, self.counts, self.owner, self.used
 
     def clear(self) -> None:
-        """Forget every block (the pool is kept and reused)."""
-        _clear(self.tables, self.owner, self.used)
+        """Forget every block (the pools are kept and reused)."""
+        _clear(self.top, self.owner, self.used)
 
     def arrays(self, index: int) -> MapArrays:
-        return MapArrays(self.key0, self.shape, self.tables[index], self.values)
+        return MapArrays(self.key0, self.shape, self.top[index], self.chunks, self.values)
+
+    def n_blocks(self, index: int) -> int:
+        """Blocks allocated to map ``index``."""
+        own = self.top[index][self.top[index] >= 0]
+        return int(np.count_nonzero(self.chunks[own] >= 0))
 
     @property
     def nbytes(self) -> int:
-        return sum(a.nbytes for a in (self.tables, self.values, self.marks, self.bits, self.counts, self.owner))
+        return sum(a.nbytes for a in (self.top, self.values, self.marks, self.bits, self.counts, self.chunks,
+                                      self.owner))
 
 
 class MapStore:
@@ -156,7 +179,7 @@ class MapStore:
             self.n_levels = 1
             while self.n_levels <= MAX_LEVEL and max(_level_shape(self.key0, self.shape, self.n_levels - 1)) > 1:
                 self.n_levels += 1
-            leaves = _Blocks(self.key0, self.shape, self.n_maps, 0)
+            leaves = _Blocks(self.key0, self.shape, self.n_maps, 16)
             if self.levels:
                 leaves.adopt_pool(self.levels[0])
             else:
@@ -269,7 +292,7 @@ class OccupancyMap:
     @property
     def n_blocks(self) -> int:
         """Leaf blocks (8^3 voxels) allocated so far: what this map has touched."""
-        return int(np.count_nonzero(self._store.levels[0].tables[self._index] >= 0))
+        return self._store.levels[0].n_blocks(self._index)
 
     def arrays(self) -> MapArrays:
         """The leaves as numba kernels read them (with ``voxel_logodds``); valid until the next update."""
@@ -362,7 +385,7 @@ class OccupancyMap:
         """
         lv = self._store.level_blocks(depth, [self._index])
         grid = np.full(tuple(lv.shape), np.nan, np.float32)
-        _densify(lv.tables[self._index], lv.values, grid)
+        _densify(lv.tables, self._index, lv.values, grid)
         grid.flags.writeable = False
         return lv.key0 * (self._store.res * 2 ** depth), self._store.res * 2 ** depth, grid
 
@@ -385,7 +408,8 @@ class OccupancyMap:
         tree.setClampingThresMin(cfg.p_min)
         tree.setClampingThresMax(cfg.p_max)
         tree.setOccupancyThres(cfg.p_occ)
-        idx, values = _known(self._store.levels[0].tables[self._index], self._store.levels[0].values)
+        leaves = self._store.levels[0]
+        idx, values = _known(leaves.tables, self._index, leaves.values, leaves.shape)
         centres = (self._store.key0 + idx + 0.5) * self.resolution
         # A new node starts at log-odds 0, so adding the value sets it exactly; one call per distinct value.
         order = np.argsort(values, kind="stable")
@@ -431,17 +455,20 @@ class _ReadOnlyOccupancyMap(OccupancyMap):
 
 
 # ---------------------------------------------------------------------- memory estimate
-def map_memory_estimate(shape, n_maps: int, seen_blocks: int) -> int:
+def map_memory_estimate(shape, n_maps: int, seen_blocks: int, seen_chunks: int) -> int:
     """Bytes of ``n_maps`` leaf maps over a grid of ``shape`` voxels when each touches at most
-    ``seen_blocks`` blocks (capped at the grid's): block tables plus pooled blocks."""
+    ``seen_blocks`` blocks in ``seen_chunks`` chunks (capped at the grid's): tables, chunks, blocks."""
     grid_blocks = math.prod(-(-int(n) >> BLOCK_SHIFT) for n in shape)
-    return n_maps * (4 * grid_blocks + min(seen_blocks, grid_blocks) * BLOCK_BYTES)
+    grid_chunks = math.prod(-(-int(n) >> CHUNK_SHIFT) for n in shape)
+    return n_maps * (4 * grid_chunks + min(seen_chunks, grid_chunks) * CHUNK_BYTES
+                     + min(seen_blocks, grid_blocks) * BLOCK_BYTES)
 
 
-def seen_blocks_bound(r_max: float, path_length: float, res: float) -> int:
-    """Blocks a sensor of range ``r_max`` can touch along a path of ``path_length`` m: those of a
-    box as long as the path plus 2 r_max and 2 r_max wide and high, one spare block per side."""
-    edge = res * (1 << BLOCK_SHIFT)
+def seen_blocks_bound(r_max: float, path_length: float, res: float, edge_voxels: int = BLOCK_EDGE) -> int:
+    """Cubes of ``edge_voxels`` voxels (default: blocks) a sensor of range ``r_max`` can touch along a
+    path of ``path_length`` m: those of a box as long as the path plus 2 r_max and 2 r_max wide and
+    high, one spare cube per side."""
+    edge = res * edge_voxels
     across = math.ceil(2.0 * r_max / edge) + 2
     return int((math.ceil((path_length + 2.0 * r_max) / edge) + 2) * across * across)
 
@@ -482,30 +509,47 @@ def _level_shape(key0: np.ndarray, shape, depth: int) -> tuple:
 
 # ---------------------------------------------------------------------- kernels
 @numba.njit(cache=True)
-def _clear(tables, owner, used):
-    """Unlink every pooled block from its table entry and empty the pool."""
-    flat = tables.reshape(tables.size)
-    for b in range(used[0]):
-        flat[owner[b]] = -1
-    used[0] = 0
+def _clear(top, owner, used):
+    """Unlink every pooled chunk from its map's table and empty both pools."""
+    flat = top.reshape(top.size)
+    for c in range(used[1]):
+        flat[owner[c]] = -1
+    used[0] = used[1] = 0
+
+
+@numba.njit(cache=True, inline="always")
+def _block_at(tables, m, bi, bj, bk):
+    """Pool index of block (bi, bj, bk) of map m (int64), -1 if never observed; ``tables`` = (top, chunks)."""
+    c = tables[0][m, bi >> BLOCK_SHIFT, bj >> BLOCK_SHIFT, bk >> BLOCK_SHIFT]
+    if c < 0:
+        return np.int64(-1)
+    return np.int64(tables[1][c, _offset(bi, bj, bk)])
 
 
 @numba.njit(cache=True)
 def _new_block(tables, values, bits, counts, owner, used, m, bi, bj, bk):
-    """Allocate block (bi, bj, bk) of map m (all unknown) from the pool; -1 if the pool is full.
-
-    Callers look ``tables`` up first and call this only on a miss."""
-    b = used[0]
-    if b >= values.shape[0]:
+    """Allocate block (bi, bj, bk) of map m (all unknown) from the pool, and its chunk if it has none;
+    -1 if a pool is full. Callers look the block up first and call this only on a miss."""
+    top, chunks = tables
+    ci, cj, ck = bi >> BLOCK_SHIFT, bj >> BLOCK_SHIFT, bk >> BLOCK_SHIFT
+    c = np.int64(top[m, ci, cj, ck])
+    if used[0] >= values.shape[0] or (c < 0 and used[1] >= chunks.shape[0]):
         return np.int64(-1)
+    if c < 0:
+        c = used[1]
+        used[1] = c + 1
+        top[m, ci, cj, ck] = c
+        for e in range(BLOCK_VOXELS):
+            chunks[c, e] = -1
+        owner[c] = ((m * top.shape[1] + ci) * top.shape[2] + cj) * top.shape[3] + ck
+    b = used[0]
     used[0] = b + 1
-    tables[m, bi, bj, bk] = b
+    chunks[c, _offset(bi, bj, bk)] = b
     for v in range(BLOCK_VOXELS):
         values[b, v] = np.nan
     for row in range(bits.shape[1]):
         bits[b, row] = 0
     counts[b] = 0
-    owner[b] = ((m * tables.shape[1] + bi) * tables.shape[2] + bj) * tables.shape[3] + bk
     return b
 
 
@@ -539,18 +583,21 @@ def _update_voxel(values, bits, counts, f, update, l_min, l_max, l_occ):
 def _integrate_maps(tables, values, bits, counts, owner, used, marks, dirty, key0, shape, res, indices, origins,
                     endpoints, hit, l_hit, l_miss, l_min, l_max, l_occ, start):
     """Integrate scan q into map indices[q] for q = start, ...; return the first q not done because the
-    pool might run out of blocks during it (grow the pool and call again from there), or len(indices)."""
+    pools might run out during it (grow them and call again from there), or len(indices)."""
     inv_res = 1.0 / res
     for q in range(start, indices.shape[0]):
-        # a ray of K keys enters at most K / 8 + 4 blocks (a block change needs 8 steps along one axis)
-        need = 0
+        # a ray of K keys enters at most K / 8 + 4 blocks (a block change needs 8 steps along one axis),
+        # and at most K / 64 + 4 chunks
+        need, need_chunks = 0, 0
         o = origins[q]
         ox, oy, oz = np.float64(np.float32(o[0])), np.float64(np.float32(o[1])), np.float64(np.float32(o[2]))
         for r in range(endpoints.shape[1]):
             e = endpoints[q, r]
-            need += ray_key_bound(ox, oy, oz, np.float64(np.float32(e[0])), np.float64(np.float32(e[1])),
-                                  np.float64(np.float32(e[2])), inv_res) // (1 << BLOCK_SHIFT) + 5
-        if used[0] + need > values.shape[0]:
+            bound = ray_key_bound(ox, oy, oz, np.float64(np.float32(e[0])), np.float64(np.float32(e[1])),
+                                  np.float64(np.float32(e[2])), inv_res)
+            need += bound // (1 << BLOCK_SHIFT) + 5
+            need_chunks += bound // (1 << CHUNK_SHIFT) + 5
+        if used[0] + need > values.shape[0] or used[1] + need_chunks > tables[1].shape[0]:
             return q
         _integrate_one(tables, values, bits, counts, owner, used, marks, dirty[indices[q]], key0, shape, res,
                        indices[q], origins[q], endpoints[q], hit[q], l_hit, l_miss, l_min, l_max, l_occ)
@@ -566,6 +613,7 @@ def _integrate_one(tables, values, bits, counts, owner, used, marks, dirty, key0
     and marks it; finally the hits are applied and all marks cleared.
     """
     nx, ny, nz = shape[0], shape[1], shape[2]
+    top, chunks = tables
     flat_values = values.reshape(values.size)
     flat_marks = marks.reshape(marks.size)
     flat_bits = bits.reshape(bits.size)
@@ -594,8 +642,9 @@ def _integrate_one(tables, values, bits, counts, owner, used, marks, dirty, key0
             j = coord_key(ends[r, 1], inv_res) - key0[1]
             k = coord_key(ends[r, 2], inv_res) - key0[2]
             if 0 <= i < nx and 0 <= j < ny and 0 <= k < nz:
-                b = np.int64(tables[m, i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT])
-                if b < 0:  # the table is read inline: a call passing the pool's arrays per voxel costs refcounting
+                c = top[m, i >> CHUNK_SHIFT, j >> CHUNK_SHIFT, k >> CHUNK_SHIFT]
+                b = np.int64(chunks[c, _offset(i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT)] if c >= 0 else -1)
+                if b < 0:  # read inline: a call passing the pools' arrays per voxel would cost refcounting
                     b = _new_block(tables, values, bits, counts, owner, used, m, i >> BLOCK_SHIFT, j >> BLOCK_SHIFT,
                                    k >> BLOCK_SHIFT)
                 f = (b << (3 * BLOCK_SHIFT)) | _offset(i, j, k)
@@ -609,8 +658,9 @@ def _integrate_one(tables, values, bits, counts, owner, used, marks, dirty, key0
         for q in range(c):
             i, j, k = keys[q, 0] - kx0, keys[q, 1] - ky0, keys[q, 2] - kz0
             if (i | j | k) >= 0 and i < nx and j < ny and k < nz:
-                b = np.int64(tables[m, i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT])
-                if b < 0:  # the table is read inline: a call passing the pool's arrays per voxel costs refcounting
+                c = top[m, i >> CHUNK_SHIFT, j >> CHUNK_SHIFT, k >> CHUNK_SHIFT]
+                b = np.int64(chunks[c, _offset(i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT)] if c >= 0 else -1)
+                if b < 0:  # read inline: a call passing the pools' arrays per voxel would cost refcounting
                     b = _new_block(tables, values, bits, counts, owner, used, m, i >> BLOCK_SHIFT, j >> BLOCK_SHIFT,
                                    k >> BLOCK_SHIFT)
                 f = (b << (3 * BLOCK_SHIFT)) | _offset(i, j, k)
@@ -647,7 +697,7 @@ def _pool_maps(child_tables, child_values, child_shape, child_key0, tables, valu
         for pbi in range(o[0] >> BLOCK_SHIFT, (o[3] >> BLOCK_SHIFT) + 1):
             for pbj in range(o[1] >> BLOCK_SHIFT, (o[4] >> BLOCK_SHIFT) + 1):
                 for pbk in range(o[2] >> BLOCK_SHIFT, (o[5] >> BLOCK_SHIFT) + 1):
-                    pb = np.int64(tables[m, pbi, pbj, pbk])
+                    pb = _block_at(tables, m, pbi, pbj, pbk)
                     if pb < 0 and not _children_known(child_tables, child_shape, child_key0, key0, m, pbi, pbj, pbk):
                         continue
                     if pb < 0:
@@ -686,7 +736,7 @@ def _child(tables, values, shape, m, i, j, k):
     """Log-odds of cell (i, j, k) of map m of a level (NaN if unknown or outside)."""
     if i < 0 or j < 0 or k < 0 or i >= shape[0] or j >= shape[1] or k >= shape[2]:
         return np.float32(np.nan)
-    b = tables[m, i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT]
+    b = _block_at(tables, m, i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT)
     if b < 0:
         return np.float32(np.nan)
     return values[b, _offset(i, j, k)]
@@ -704,19 +754,19 @@ def _children_known(child_tables, child_shape, child_key0, key0, m, pbi, pbj, pb
     for bi in range(lo[0], hi[0] + 1):
         for bj in range(lo[1], hi[1] + 1):
             for bk in range(lo[2], hi[2] + 1):
-                if child_tables[m, bi, bj, bk] >= 0:
+                if _block_at(child_tables, m, bi, bj, bk) >= 0:
                     return True
     return False
 
 
 @numba.njit(cache=True)
-def _densify(table, values, grid):
-    """Copy the allocated blocks of one map's table into the dense NaN-filled ``grid``."""
+def _densify(tables, m, values, grid):
+    """Copy the allocated blocks of map m into the dense NaN-filled ``grid``."""
     nx, ny, nz = grid.shape
-    for bi in range(table.shape[0]):
-        for bj in range(table.shape[1]):
-            for bk in range(table.shape[2]):
-                b = table[bi, bj, bk]
+    for bi in range(-(-nx >> BLOCK_SHIFT)):
+        for bj in range(-(-ny >> BLOCK_SHIFT)):
+            for bk in range(-(-nz >> BLOCK_SHIFT)):
+                b = _block_at(tables, m, bi, bj, bk)
                 if b < 0:
                     continue
                 for i in range(bi << BLOCK_SHIFT, min(nx, (bi + 1) << BLOCK_SHIFT)):
@@ -726,20 +776,26 @@ def _densify(table, values, grid):
 
 
 @numba.njit(cache=True)
-def _known(table, values):
-    """Local indices (M, 3) and log-odds (M,) of one map's known voxels, block by block."""
+def _known(tables, m, values, shape):
+    """Local indices (M, 3) and log-odds (M,) of map m's known voxels, block by block."""
+    nb = np.empty(3, np.int64)
+    for a in range(3):
+        nb[a] = -(-shape[a] >> BLOCK_SHIFT)
     n = 0
-    for b in table.ravel():
-        if b >= 0:
-            for v in range(BLOCK_VOXELS):
-                n += not np.isnan(values[b, v])
+    for bi in range(nb[0]):
+        for bj in range(nb[1]):
+            for bk in range(nb[2]):
+                b = _block_at(tables, m, bi, bj, bk)
+                if b >= 0:
+                    for v in range(BLOCK_VOXELS):
+                        n += not np.isnan(values[b, v])
     idx = np.empty((n, 3), np.int64)
     out = np.empty(n, np.float32)
     n = 0
-    for bi in range(table.shape[0]):
-        for bj in range(table.shape[1]):
-            for bk in range(table.shape[2]):
-                b = table[bi, bj, bk]
+    for bi in range(nb[0]):
+        for bj in range(nb[1]):
+            for bk in range(nb[2]):
+                b = _block_at(tables, m, bi, bj, bk)
                 if b < 0:
                     continue
                 for v in range(BLOCK_VOXELS):
@@ -786,7 +842,7 @@ def occupied_cells(tables, values, bits, counts, m, key0, n, res, center, radius
     for bi in range(lo[0] >> BLOCK_SHIFT, (hi[0] >> BLOCK_SHIFT) + 1):
         for bj in range(lo[1] >> BLOCK_SHIFT, (hi[1] >> BLOCK_SHIFT) + 1):
             for bk in range(lo[2] >> BLOCK_SHIFT, (hi[2] >> BLOCK_SHIFT) + 1):
-                b = tables[m, bi, bj, bk]
+                b = _block_at(tables, m, bi, bj, bk)
                 if b >= 0:
                     capacity += counts[b]
     centres = np.empty((capacity, 3))
@@ -801,7 +857,7 @@ def occupied_cells(tables, values, bits, counts, m, key0, n, res, center, radius
             j0, j1 = max(lo[1], bj << BLOCK_SHIFT), min(hi[1], ((bj + 1) << BLOCK_SHIFT) - 1)
             gj = _gap(center[1], (key0[1] + j0 + 0.5) * res, (key0[1] + j1 + 0.5) * res)
             for bk in range(lo[2] >> BLOCK_SHIFT, (hi[2] >> BLOCK_SHIFT) + 1):
-                b = tables[m, bi, bj, bk]
+                b = _block_at(tables, m, bi, bj, bk)
                 if b < 0 or counts[b] == 0:
                     continue
                 k0, k1 = max(lo[2], bk << BLOCK_SHIFT), min(hi[2], ((bk + 1) << BLOCK_SHIFT) - 1)
