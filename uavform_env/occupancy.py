@@ -168,7 +168,7 @@ class MapStore:
 
     def clear(self, origin=None, shape=None) -> None:
         """Forget every observation of every map, keeping the block pool for reuse; with ``origin`` and
-        ``shape``, the maps cover that grid from now on (new block tables, the same pool)."""
+        ``shape``, the maps cover that grid from now on (new chunk tables, the same pools)."""
         same = self.levels and (origin is None or (np.array_equal(grid_origin_key(origin, self.res), self.key0)
                                                    and _check_shape(shape) == self.shape))
         if same:
