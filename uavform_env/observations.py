@@ -82,7 +82,8 @@ class ObservationLayout:
 
 
 def build_observations(layout: ObservationLayout, cfg: EnvConfig, states: np.ndarray, targets: np.ndarray,
-                       leader_index: int, broadcast: np.ndarray, maps: MapStore, neighbour_ok: np.ndarray) -> np.ndarray:
+                       leader_index: int, broadcast: np.ndarray, maps: MapStore,
+                       neighbour_ok: np.ndarray) -> np.ndarray:
     """Observations (N, size) float32 of all UAVs.
 
     ``states`` are the true own states, ``broadcast`` the neighbours' broadcast states (one cycle

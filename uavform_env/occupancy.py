@@ -825,9 +825,10 @@ def _gap(c, lo_centre, hi_centre):
 
 @numba.njit(cache=True)
 def occupied_cells(tables, values, bits, counts, m, key0, n, res, center, radius, first_only):
-    """The kernel of ``OccupancyMap.occupied_in_sphere`` over one level of a store (the arguments of
-    ``_Blocks.pool()``, map m, the level's key0, shape and cell size): occupied cells of map m whose centres lie within ``radius``: non-empty blocks within reach only,
-    and in them only the set bits of their rows; with ``first_only`` stop at the first one.
+    """The kernel of ``OccupancyMap.occupied_in_sphere`` over one level of a store (its ``tables``, block
+    pool arrays, map m, the level's key0, shape and cell size): centres and probabilities of the occupied
+    cells of map m whose centres lie within ``radius``. Visits the non-empty blocks within reach only,
+    and in them only the set bits of their rows; with ``first_only`` stops at the first one.
 
     Order: blocks x-major, then cells x-major inside a block (the order every caller sums in)."""
     lo = np.empty(3, np.int64)
