@@ -758,8 +758,9 @@ def _gap_altitude(view, target_xy, z_pref: float, cfg: ExpertConfig) -> float | 
     ts = np.arange(res, min(cfg.gap_lookahead, dist + res), res)
     if ts.size == 0:
         return None
-    best = _gap_kernel(occ.arrays(), occ.origin, res, pos, d / dist, ts, z_pref, max(1, int(round(cfg.gap_depth / res))),
-                       lim.r_uav + lim.r_safe, lim.z_min, lim.z_max, cfg.gap_margin)
+    best = _gap_kernel(occ.arrays(), occ.origin, res, pos, d / dist, ts, z_pref,
+                       max(1, int(round(cfg.gap_depth / res))), lim.r_uav + lim.r_safe, lim.z_min, lim.z_max,
+                       cfg.gap_margin)
     return None if math.isnan(best) else best
 
 
