@@ -19,6 +19,7 @@ import numpy as np
 
 from uavform_env.config import _check_choice, _check_int, _check_range, _Config
 from uavform_env.dynamics import PSI, V, VZ, W, commands_to_actions, wrap
+from uavform_env.occupancy import voxel_logodds
 from uavform_env.world import grid_frame
 
 from .astar import AStarConfig, GlobalPath, Raster, inflate, plan_path, replan_trigger
@@ -649,16 +650,16 @@ def _columns_without_gap(occ_map, centres: np.ndarray, z_min: float, z_max: floa
     k_hi = min(occ_map.shape[2], int(math.floor((z_max - origin[2]) / res - 0.5)) + 1)
     l_occ = np.float32(occ_map.cfg.logodds(occ_map.cfg.p_occ))        # the map's float32 occupancy threshold
     out = np.empty((len(centres), 2))
-    n = _gapless_columns_kernel(occ_map.logodds, np.ascontiguousarray(centres, dtype=np.float64), origin, res,
+    n = _gapless_columns_kernel(occ_map.arrays(), np.ascontiguousarray(centres, dtype=np.float64), origin, res,
                                 z_min - res, z_max + res, k_lo, k_hi, l_occ, gap, out)
     return out[:n]
 
 
 @numba.njit(cache=True)
-def _gapless_columns_kernel(logodds, centres, origin, res, z_lo, z_hi, k_lo, k_hi, l_occ, gap, out):
+def _gapless_columns_kernel(leaves, centres, origin, res, z_lo, z_hi, k_lo, k_hi, l_occ, gap, out):
     """Write into ``out`` the x, y of each column (once) of a voxel of ``centres`` within [z_lo, z_hi] whose
     layers k_lo..k_hi-1 hold no run of non-occupied voxels >= ``gap`` with a known-free voxel; return the count."""
-    visited = np.zeros((logodds.shape[0], logodds.shape[1]), dtype=np.bool_)
+    visited = np.zeros((leaves.shape[0], leaves.shape[1]), dtype=np.bool_)
     n = 0
     for m in range(centres.shape[0]):
         if not z_lo <= centres[m, 2] <= z_hi:
@@ -670,7 +671,7 @@ def _gapless_columns_kernel(logodds, centres, origin, res, z_lo, z_hi, k_lo, k_h
         visited[i, j] = True
         length, seen, way = 0, False, False
         for k in range(k_lo, k_hi):
-            value = logodds[i, j, k]
+            value = voxel_logodds(leaves, i, j, k)
             if value >= l_occ:                                  # NaN (unknown) compares False
                 length, seen = 0, False
                 continue
@@ -757,16 +758,17 @@ def _gap_altitude(view, target_xy, z_pref: float, cfg: ExpertConfig) -> float | 
     ts = np.arange(res, min(cfg.gap_lookahead, dist + res), res)
     if ts.size == 0:
         return None
-    best = _gap_kernel(occ.logodds, occ.origin, res, pos, d / dist, ts, z_pref, max(1, int(round(cfg.gap_depth / res))),
-                       lim.r_uav + lim.r_safe, lim.z_min, lim.z_max, cfg.gap_margin)
+    best = _gap_kernel(occ.arrays(), occ.origin, res, pos, d / dist, ts, z_pref,
+                       max(1, int(round(cfg.gap_depth / res))), lim.r_uav + lim.r_safe, lim.z_min, lim.z_max,
+                       cfg.gap_margin)
     return None if math.isnan(best) else best
 
 
 @numba.njit(cache=True)
-def _gap_kernel(grid, origin, res, pos, u, ts, z_pref, span, h_b, z_min, z_max, margin):
-    """_gap_altitude on the leaf grid: the columns at ``pos + ts * u``, the first blocking the band around
-    ``z_pref``, and the runs known free through it and the next ``span - 1`` columns; NaN if none."""
-    nx, ny, nz = grid.shape
+def _gap_kernel(leaves, origin, res, pos, u, ts, z_pref, span, h_b, z_min, z_max, margin):
+    """_gap_altitude on the leaves (a ``MapArrays``): the columns at ``pos + ts * u``, the first blocking the
+    band around ``z_pref``, and the runs known free through it and the next ``span - 1`` columns; NaN if none."""
+    nx, ny, nz = leaves.shape[0], leaves.shape[1], leaves.shape[2]
     cols = np.empty((ts.size, 2), np.int64)
     k_cols = 0
     for i in range(ts.size):
@@ -781,7 +783,7 @@ def _gap_kernel(grid, origin, res, pos, u, ts, z_pref, span, h_b, z_min, z_max, 
     first = -1
     for i in range(k_cols):
         for k in range(nz):
-            if abs(z[k] - z_pref) <= h_b + res / 2 and grid[cols[i, 0], cols[i, 1], k] > 0.0:
+            if abs(z[k] - z_pref) <= h_b + res / 2 and voxel_logodds(leaves, cols[i, 0], cols[i, 1], k) > 0.0:
                 first = i
                 break
         if first >= 0:
@@ -792,7 +794,7 @@ def _gap_kernel(grid, origin, res, pos, u, ts, z_pref, span, h_b, z_min, z_max, 
     for k in range(nz):
         ok = (z[k] - res / 2 >= z_min - h_b) and (z[k] + res / 2 <= z_max + h_b)
         for i in range(first, min(first + span, k_cols)):
-            if not grid[cols[i, 0], cols[i, 1], k] <= 0.0:         # occupied or unknown (NaN)
+            if not voxel_logodds(leaves, cols[i, 0], cols[i, 1], k) <= 0.0:  # occupied or unknown (NaN)
                 ok = False
                 break
         free[k] = ok

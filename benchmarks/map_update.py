@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from uavform_env.config import MapConfig, SensorConfig
-from uavform_env.occupancy import OccupancyMap
+from uavform_env.occupancy import MapStore
 from uavform_env.sensing import STATIC, RangeSensor
 
 RES = 0.2
@@ -48,7 +48,6 @@ def main() -> None:
     origin = np.zeros(3)
     sensor_cfg, map_cfg = SensorConfig(), MapConfig(resolution=RES)
     sensor = RangeSensor(sensor_cfg)
-    stamp = np.zeros(occ.shape, np.int32)
     # UAVs cross the field along x at spread-out heights and lanes (they fly through cylinders; the
     # sensor does not care, and it keeps every step's scan full of hits)
     start = np.column_stack([np.full(args.uavs, 1.0), np.linspace(3, SIZE[1] - 3, args.uavs),
@@ -58,15 +57,15 @@ def main() -> None:
 
     def fly():
         """One pass over the route with fresh maps: per step (scan, integrate, query) seconds."""
-        maps = [OccupancyMap(origin, occ.shape, RES, map_cfg, stamp=stamp) for _ in range(args.uavs)]
+        store = MapStore(origin, occ.shape, RES, map_cfg, args.uavs)
+        maps = store.maps
         times, hits, occupied = [], [], []
         for k in range(args.steps):
             pos = start + k * velocity
             t0 = time.perf_counter()
             scan = sensor.scan(occ, origin, RES, pos, yaws, k, 0.3)
             t1 = time.perf_counter()
-            for i, m in enumerate(maps):
-                m.integrate_scan(pos[i], scan.endpoints[i], scan.kind[i])
+            store.integrate(np.arange(args.uavs), pos, scan.endpoints, scan.kind == STATIC)
             t2 = time.perf_counter()
             n_occ = sum(len(m.occupied_in_sphere(pos[i], 5.0)[0]) for i, m in enumerate(maps))
             t3 = time.perf_counter()

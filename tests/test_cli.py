@@ -70,15 +70,14 @@ def test_version_names_the_package_and_the_code(capsys):
 # ----------------------------------------------------------------------------- bad input
 ARGPARSE_ERRORS = [
     (["fly", "--seed", "-1"], "argument --seed: expected an integer >= 0, got '-1'"),
-    (["fly", "--n-uavs", "1000"], "argument --n-uavs: expected an integer in [1, 20], got '1000'"),
     (["fly", "--max-steps", "0"], "argument --max-steps: expected an integer >= 1, got '0'"),
     (["fly", "--video-every", "0"], "argument --video-every: expected an integer >= 1, got '0'"),
     (["fly", "--format", "jpg"], "argument --format: invalid choice: 'jpg'"),
     (["fly", "--formation", "blob"], "argument --formation: invalid choice: 'blob'"),
-    (["scenarios", "--export", "forest", "--n-uavs", "0"], "argument --n-uavs: expected an integer in [1, 20]"),
+    (["scenarios", "--export", "forest", "--n-uavs", "0"], "argument --n-uavs: expected an integer >= 1"),
     (["leaderboard", "--workers", "0", "--policy", "hover"], "argument --workers: expected an integer >= 1"),
     (["leaderboard", "--time-limit", "-5", "--policy", "hover"], "argument --time-limit: expected a number > 0"),
-    (["train", "--out", "x", "--n-uavs", "0"], "argument --n-uavs: expected an integer in [1, 20]"),
+    (["train", "--out", "x", "--n-uavs", "0"], "argument --n-uavs: expected an integer >= 1"),
     (["train", "--out", "x", "--learning-rate", "2"], "argument --learning-rate: expected a number in (0, 1]"),
     (["train", "--out", "x", "--reward", "best"], "argument --reward: invalid choice: 'best'"),
 ]
@@ -91,6 +90,15 @@ def test_bad_flags_give_one_line_naming_the_flag(argv, message, capsys):
     assert exit_.value.code == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_too_many_uavs_for_the_memory_names_n_uavs(tmp_path, capsys, monkeypatch):
+    env_module = sys.modules["uavform_env.env"]  # the package's `env` attribute is the AEC constructor
+    monkeypatch.setattr(env_module, "available_memory", lambda: 2**20)  # a machine with 1 MiB free
+    assert main(["fly", "--n-uavs", "100", "--out", str(tmp_path / "never")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("uavform fly: error: --n-uavs 100: n_uavs=100 at map resolution ") and err.count("\n") == 1
+    assert "use fewer UAVs" in err and not (tmp_path / "never").exists()
 
 
 def test_bad_inputs_fail_before_any_work(tmp_path, capsys):

@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from uavform_env.config import MapConfig
-from uavform_env.occupancy import OccupancyMap
+from uavform_env.occupancy import MapStore, OccupancyMap
 
 RES = 0.2
 CFG = MapConfig()
@@ -236,18 +236,17 @@ def test_read_only_view_follows_updates_and_refuses_writes():
         view.logodds[0, 0, 0] = 1.0
 
 
-def test_shared_stamp_gives_the_same_maps_and_stays_clear():
+def test_maps_of_one_store_equal_standalone_maps_and_leave_no_marks():
     rng_a, rng_b = np.random.default_rng(5), np.random.default_rng(5)
-    stamp = np.zeros((20, 20, 10), np.int32)
-    shared = [OccupancyMap((0, 0, 0), (20, 20, 10), RES, stamp=stamp) for _ in range(2)]
+    store = MapStore((0, 0, 0), (20, 20, 10), RES, CFG, 2)
     alone = [OccupancyMap((0, 0, 0), (20, 20, 10), RES) for _ in range(2)]
     for _ in range(3):
-        for a, b in zip(shared, alone):
+        for a, b in zip(store.maps, alone):
             random_scans(a, rng_a, n_scans=1)
             random_scans(b, rng_b, n_scans=1)
-    for a, b in zip(shared, alone):
+    for a, b in zip(store.maps, alone):
         np.testing.assert_array_equal(a.logodds, b.logodds)
-    assert not stamp.any()
+    assert not store.levels[0].marks.any()
 
 
 def test_integrate_scan_treats_only_static_hits_as_hits():
@@ -262,8 +261,6 @@ def test_bad_input_raises_value_error():
         OccupancyMap((0.1, 0, 0), (4, 4, 4), RES)
     with pytest.raises(ValueError, match="shape"):
         OccupancyMap((0, 0, 0), (4, 4), RES)
-    with pytest.raises(ValueError, match="stamp"):
-        OccupancyMap((0, 0, 0), (4, 4, 4), RES, stamp=np.zeros((4, 4, 5), np.int32))
     with pytest.raises(ValueError, match="cfg"):
         OccupancyMap((0, 0, 0), (4, 4, 4), RES, cfg={"p_hit": 0.7})
     m = OccupancyMap((0, 0, 0), (4, 4, 4), RES)

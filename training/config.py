@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from uavform_env.cli import MAX_UAVS
 from uavform_env.config import _check_int, _check_range, _Config
 from uavform_env.scenarios import make_scenario
 
@@ -13,7 +12,7 @@ from .residual import ResidualConfig
 
 # The bounds of the numeric fields, stated once: __post_init__ checks them and ``uavform train --help`` shows them.
 # Integers: (lo, hi); numbers: (lo, hi, lo_open). None = unbounded.
-INT_BOUNDS = {"n_uavs": (1, MAX_UAVS), "max_cycles": (10, None), "timesteps": (1, None), "n_envs": (1, 64),
+INT_BOUNDS = {"n_uavs": (1, None), "max_cycles": (10, None), "timesteps": (1, None), "n_envs": (1, 64),
               "n_steps": (2, None), "batch_size": (0, None), "n_epochs": (1, None), "seed": (0, 2**31 - 1),
               "eval_every": (1, None)}
 FLOAT_BOUNDS = {"learning_rate": (0.0, 1.0, True), "gamma": (0.0, 1.0, True), "gae_lambda": (0.0, 1.0, False),

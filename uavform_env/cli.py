@@ -25,9 +25,6 @@ COMMAND_GROUP = "uavform.commands"
 _DEFAULTS = EnvConfig()
 DESCRIPTION = ("uavform: fly multi-UAV formations through 3D obstacle fields, export scenarios, run the leaderboard "
                "(plug-ins add train and reproduce)")
-# Each UAV keeps its own occupancy map of the whole world and the generated fields widen with the formation,
-# so memory grows faster than linearly with N; 20 is the size the benchmarks and training cover.
-MAX_UAVS = 20
 PICTURE_FORMATS = ("png", "svg", "pdf")
 # Optional dependencies by import name -> the extra of pyproject.toml that installs them.
 EXTRAS = {"torch": "train", "stable_baselines3": "train", "tensorboard": "train", "ray": "ray",
@@ -128,7 +125,11 @@ def _preflight_fly(args):
     kwargs = dict(scenario=args.scenario, n_uavs=args.n_uavs, formation=args.formation, difficulty=args.difficulty,
                   render_mode="rgb_array" if args.video else None, top_down=args.top_down, max_cycles=args.max_steps,
                   disturbance=args.wind)
-    penv = parallel_env(**{k: v for k, v in kwargs.items() if v is not None})
+    try:
+        penv = parallel_env(**{k: v for k, v in kwargs.items() if v is not None})
+    except ValueError as e:  # the scenario file's own problems, or the env's memory check (too many UAVs)
+        flag, value = ("--n-uavs", args.n_uavs) if str(e).startswith("n_uavs=") else ("--scenario", args.scenario)
+        raise _flag(flag, value, e) from None
     try:
         policy = load_policy(args.policy)
     except ValueError as e:
@@ -301,8 +302,9 @@ def build_parser() -> argparse.ArgumentParser:
     fly.add_argument("--policy", default="expert",
                      help=f"short name ({', '.join(available_policies())}), module:attr of a policy class, or a "
                           "checkpoint .zip (needs the train extra) (default: expert)")
-    fly.add_argument("--n-uavs", type=int_in(1, MAX_UAVS), default=None, metavar="N",
-                     help=f"number of UAVs, 1-{MAX_UAVS}; uav_0 leads (default: the scenario's, 5; classic-2d 1)")
+    fly.add_argument("--n-uavs", type=int_in(1), default=None, metavar="N",
+                     help="number of UAVs, >= 1; uav_0 leads (default: the scenario's: drawn from the seed, "
+                          "classic-2d 1); refused before flying if the maps would not fit in memory")
     fly.add_argument("--formation", choices=FORMATION_SHAPES, default=None,
                      help="formation shape (default: the scenario's, wedge)")
     fly.add_argument("--difficulty", default=None,
@@ -334,8 +336,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="registered scenario to export (one of the names listed without --export)")
     scn.add_argument("--seed", type=int_in(0), default=0,
                      help="generator seed, an integer >= 0: which obstacle layout (default: 0)")
-    scn.add_argument("--n-uavs", type=int_in(1, MAX_UAVS), default=None, metavar="N",
-                     help=f"number of UAVs, 1-{MAX_UAVS} (default: the scenario's)")
+    scn.add_argument("--n-uavs", type=int_in(1), default=None, metavar="N",
+                     help="number of UAVs, >= 1 (default: the scenario's)")
     scn.add_argument("--formation", choices=FORMATION_SHAPES, default=None,
                      help="formation shape (default: the scenario's, wedge)")
     scn.add_argument("--difficulty", default=None,

@@ -23,12 +23,16 @@ from .dynamics import PSI, STATE_DIM, V, VZ, W
 from .formation import formation_errors, formation_slots, slot_offsets
 from .kernels import compile_notice
 from .observations import ObservationLayout, build_observations
-from .occupancy import OccupancyMap
+from .occupancy import (BLOCK_EDGE, CHUNK_EDGE, MapStore, available_memory, map_memory_estimate,
+                        seen_blocks_bound)
 from .onboard import OnboardView, PriorMap
 from .rewards import compute_rewards
 from .scenarios import Scenario, ScenarioFileError, load_scenario, make_scenario, validate_scenario
-from .sensing import RangeSensor, perturb_scan
-from .world import _read_only, grid_frame
+from .sensing import STATIC, RangeSensor, perturb_scan
+from .world import World, _read_only, grid_frame
+
+_LAYOUTS_KEPT = 2  # layouts (scenario, raster, prior) an env keeps for its next resets
+_DETOUR = 2.0      # the memory estimate's flight length over the straight start-goal line
 
 INFO_KEYS = ("clearance", "separation", "formation_error", "target_distance", "goal_distance", "speed",
              "altitude", "crashed", "crash_cause", "success", "end_reason", "step", "TimeLimit.truncated")
@@ -108,6 +112,7 @@ class FormationEnv(ParallelEnv):
         self.config = cfg
         self.max_cycles = cfg.episode.max_cycles
         self.n_uavs = mission.n_uavs
+        _check_memory(first, cfg, self.n_uavs)
         self.offsets = slot_offsets(mission.formation, mission.n_uavs, mission.spacing)
 
         self.possible_agents = [f"uav_{i}" for i in range(self.n_uavs)]
@@ -123,6 +128,8 @@ class FormationEnv(ParallelEnv):
         self._episode_seeds: np.random.Generator | None = None
         self.scenario: Scenario | None = None
         self._snapshot: SimpleNamespace | None = None            # see _onboard_snapshot
+        self._map_store: MapStore | None = None                  # the onboard maps, cleared by every reset
+        self._layouts: dict = {}                                 # see _layout
         self.world = None
         self._renderer = None
 
@@ -164,13 +171,10 @@ class FormationEnv(ParallelEnv):
         self._dropout_rng = np.random.default_rng(dropout_ss)
         layout_seed = self.layout_seed if self.layout_seed is not None else (
             seed if seed is not None else int(root.generate_state(1)[0]))
-        scn = self._scenario_for(layout_seed)
+        scn, world, prior = self._layout(layout_seed)
         cfg = self.config
-        world = self.world if scn == self.scenario else scn.build_world()
         validate_scenario(scn, cfg.uav, cfg.formation.z_ref, world, source=self._source)
-        if world is not self.world:
-            self.scenario, self.world = scn, world
-            self._prior = self._build_prior()
+        self.scenario, self.world, self._prior = scn, world, prior
         m = scn.mission
         self.goal = np.asarray(m.goal, dtype=np.float64)
         self.slot_altitude = m.slot_altitude
@@ -191,9 +195,14 @@ class FormationEnv(ParallelEnv):
         self.wind = np.zeros((n, 3))
         self.step_count = 0
         self.success = False
-        self._stamp = np.zeros(self.world.shape, np.int32)
-        self.maps = [OccupancyMap(self.world.origin, self.world.shape, self.world.res, cfg.map, stamp=self._stamp)
-                     for _ in range(n)]
+        w = self.world
+        store = self._map_store
+        if store is not None and (store.res, store.cfg, store.n_maps) == (w.res, cfg.map, n):
+            store.clear(w.origin, w.shape)                       # a new layout's grid, the same block pool
+        else:
+            self._map_store = MapStore(w.origin, w.shape, w.res, cfg.map, n)
+            self._map_views = [m.read_only() for m in self._map_store.maps]
+        self.maps = self._map_store.maps
         self._sense()
         self.agents = list(self.possible_agents)
         slots = self._true_slots()
@@ -206,13 +215,28 @@ class FormationEnv(ParallelEnv):
         infos = self._infos(clearance, self._separations(), ferr, self._target_dist, truncated=False)
         return obs, infos
 
-    def _build_prior(self) -> PriorMap:
+    def _layout(self, seed: int) -> tuple[Scenario, World, PriorMap]:
+        """Scenario, ground truth and prior map of a layout seed; the two most recent layouts are kept, so
+        resetting to a layout seen last (or the one before) builds nothing."""
+        key = None if self._fixed_scenario is not None else seed
+        cache = self._layouts
+        if key in cache:
+            cache[key] = cache.pop(key)                          # most recently used last
+        else:
+            scn = self._scenario_for(seed)
+            world = scn.build_world()
+            cache[key] = (scn, world, self._build_prior(scn, world))
+            while len(cache) > _LAYOUTS_KEPT:
+                del cache[next(iter(cache))]
+        return cache[key]
+
+    def _build_prior(self, scn: Scenario, world: World) -> PriorMap:
         ep = self.config.episode
         if ep.prior_map == "heightmap":
-            origin_xy, res, heights = self.world.heightmap(ep.prior_resolution)
+            origin_xy, res, heights = world.heightmap(ep.prior_resolution)
         else:
             res = ep.prior_resolution
-            origin_xy, shape = grid_frame(self.scenario.bounds_lo[:2], self.scenario.bounds_hi[:2], res)
+            origin_xy, shape = grid_frame(scn.bounds_lo[:2], scn.bounds_hi[:2], res)
             heights = np.zeros(shape, np.float32)
         heights = _read_only(np.array(heights, np.float32))
         return PriorMap(np.asarray(origin_xy, float), float(res), heights, ep.prior_map)
@@ -314,8 +338,8 @@ class FormationEnv(ParallelEnv):
         if d.range_noise_std > 0 or d.ray_dropout > 0:
             scan = perturb_scan(scan, self.states[:, :3], self.config.sensor.r_max, d.range_noise_std, d.ray_dropout,
                                 self._noise_rng, self._dropout_rng)
-        for i in np.flatnonzero(self.active):
-            self.maps[i].integrate_scan(self.states[i, :3], scan.endpoints[i], scan.kind[i])
+        live = np.flatnonzero(self.active)
+        self._map_store.integrate(live, self.states[live, :3], scan.endpoints[live], scan.kind[live] == STATIC)
         self.last_scan = scan
 
     def _clearance(self) -> np.ndarray:
@@ -343,8 +367,8 @@ class FormationEnv(ParallelEnv):
     def _observe(self) -> dict:
         targets = self._broadcast_slots()
         targets[0] = self.goal
-        obs = build_observations(self.layout, self.config, self.states, targets, 0, self.broadcast, self.maps,
-                                 self.present)
+        obs = build_observations(self.layout, self.config, self.states, targets, 0, self.broadcast,
+                                 self._map_store, self.present)
         return {a: obs[i] for i, a in enumerate(self.possible_agents)}
 
     def _infos(self, clearance, separation, ferr, target_dist, truncated: bool) -> dict:
@@ -391,13 +415,13 @@ class FormationEnv(ParallelEnv):
         snap = self._snapshot
         if snap is None or snap.key is not self.broadcast:
             n = self.n_uavs
-            others = np.array([[j for j in range(n) if j != i] for i in range(n)], dtype=np.int64).reshape(n, n - 1)
+            others = np.tile(np.arange(n, dtype=np.int64), (n, 1))[~np.eye(n, dtype=bool)].reshape(n, n - 1)
             copy = _read_only_copy
             snap = SimpleNamespace(
                 key=self.broadcast, states=copy(self.states), broadcast=copy(self.broadcast),
                 slots=copy(self._broadcast_slots()), goal=copy(self.goal), offsets=copy(self.offsets),
                 others=copy(others), neighbour_states=copy(self.broadcast[others]),
-                neighbour_alive=copy((self.active & self.present)[others]), maps=[m.read_only() for m in self.maps],
+                neighbour_alive=copy((self.active & self.present)[others]), maps=self._map_views,
                 bounds_lo=copy(self.scenario.bounds_lo), bounds_hi=copy(self.scenario.bounds_hi))
             self._snapshot = snap
         return snap
@@ -430,6 +454,24 @@ class FormationEnv(ParallelEnv):
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+
+
+def _check_memory(scn: Scenario, cfg: EnvConfig, n: int) -> None:
+    """ValueError if the ground-truth raster and n onboard maps will not fit in the memory available.
+
+    Each map is expected to hold the blocks within r_max of a flight _DETOUR times as long as the
+    straight line from start to goal (or of the whole episode at v_max, if that is shorter), as
+    ``seen_blocks_bound`` counts them; maps that see more grow their pools as they go."""
+    origin, shape = grid_frame(scn.bounds_lo, scn.bounds_hi, scn.resolution)
+    u, m = cfg.uav, scn.mission
+    path = min(u.v_max * u.dt * cfg.episode.max_cycles, _DETOUR * math.dist(m.start, m.goal))
+    seen = [seen_blocks_bound(cfg.sensor.r_max, path, scn.resolution, edge) for edge in (BLOCK_EDGE, CHUNK_EDGE)]
+    need = math.prod(shape) + map_memory_estimate(shape, n, *seen)
+    have = available_memory()
+    if need > have:
+        raise ValueError(f"n_uavs={n} at map resolution {scn.resolution:g} m over a {shape[0]}x{shape[1]}x{shape[2]} "
+                         f"voxel world needs an estimated {need / 2**30:.2f} GiB, but only {have / 2**30:.2f} GiB is "
+                         "available; use fewer UAVs, a coarser resolution, a shorter sensor.r_max or free memory")
 
 
 def _read_only_copy(a) -> np.ndarray:

@@ -10,12 +10,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from gymnasium import spaces
 
 from .config import EnvConfig
 from .dynamics import PSI, VZ, W, V, Z
-from .polar_histogram import histogram_shape, primary_histogram, weight_constants
+from .occupancy import MapArrays, MapStore, occupied_cells, voxel_logodds
+from .polar_histogram import _primary_kernel, histogram_shape, weight_constants
 
 
 @dataclass(frozen=True)
@@ -79,108 +81,150 @@ class ObservationLayout:
         return "\n".join(rows)
 
 
-def _body(dxy: np.ndarray, psi: np.ndarray) -> np.ndarray:
-    """Rotate world-frame horizontal vectors (..., 2) into body frames with yaws psi (broadcast)."""
-    c, s = np.cos(psi), np.sin(psi)
-    return np.stack([c * dxy[..., 0] + s * dxy[..., 1], -s * dxy[..., 0] + c * dxy[..., 1]], axis=-1)
-
-
 def build_observations(layout: ObservationLayout, cfg: EnvConfig, states: np.ndarray, targets: np.ndarray,
-                       leader_index: int, broadcast: np.ndarray, maps, neighbour_ok: np.ndarray) -> np.ndarray:
+                       leader_index: int, broadcast: np.ndarray, maps: MapStore,
+                       neighbour_ok: np.ndarray) -> np.ndarray:
     """Observations (N, size) float32 of all UAVs.
 
     ``states`` are the true own states, ``broadcast`` the neighbours' broadcast states (one cycle
-    old), ``targets`` (N, 3) each UAV's goal or slot, ``maps`` the onboard maps, ``neighbour_ok``
-    (N,) which UAVs still broadcast (a removed UAV does not).
+    old), ``targets`` (N, 3) each UAV's goal or slot, ``maps`` the store of the onboard maps (map i
+    is UAV i's), ``neighbour_ok`` (N,) which UAVs still broadcast (a removed UAV does not). The map
+    features of all UAVs come from one numba call each.
     """
     u, oc = cfg.uav, cfg.observation
     n = states.shape[0]
     out = np.zeros((n, layout.size), np.float32)
     psi = states[:, PSI]
-
-    ego = out[:, layout.slice("ego")]
-    ego[:, 0] = states[:, V] / u.v_max
-    ego[:, 1] = states[:, W] / u.w_max
-    ego[:, 2] = states[:, VZ] / u.vz_max if u.vz_max > 0 else 0.0
-    ego[:, 3] = np.sin(psi)
-    ego[:, 4] = np.cos(psi)
-    ego[:, 5] = 2.0 * (states[:, Z] - u.z_min) / (u.z_max - u.z_min) - 1.0
-
-    rel = targets - states[:, :3]
-    tgt = out[:, layout.slice("target")]
-    tgt[:, :2] = _body(rel[:, :2], psi) / oc.target_clip
-    tgt[:, 2] = rel[:, 2] / oc.target_clip
-    tgt[:, 3] = np.linalg.norm(rel, axis=1) / oc.target_clip
-
-    role = out[:, layout.slice("role")]
-    role[leader_index, 0] = 1.0
-    dpsi = broadcast[leader_index, PSI] - psi
-    role[:, 1] = np.sin(dpsi)
-    role[:, 2] = np.cos(dpsi)
-
-    if oc.k_neighbours:
-        _neighbour_features(out[:, layout.slice("neighbours")], states, broadcast, neighbour_ok, oc.k_neighbours,
-                            oc.neighbour_range, u.v_max)
+    k = oc.k_neighbours
+    _own_features(out, layout.slice("ego").start, layout.slice("target").start, layout.slice("role").start,
+                  layout.slice("neighbours").start if k else -1, np.ascontiguousarray(states, dtype=np.float64),
+                  np.ascontiguousarray(targets, dtype=np.float64), leader_index,
+                  np.ascontiguousarray(broadcast, dtype=np.float64), np.ascontiguousarray(neighbour_ok, dtype=np.bool_),
+                  k, float(oc.neighbour_range), float(u.v_max), float(u.w_max), float(u.vz_max), float(u.z_min),
+                  float(u.z_max), float(oc.target_clip))
     if oc.include_histogram:
         cell = math.radians(oc.histogram_cell_deg)
         r_e = u.r_uav + u.r_safe + cfg.map.resolution
         a, b = weight_constants(2.0, oc.histogram_radius, r_e)
-        hist = out[:, layout.slice("obstacle_histogram")]
-        for i in range(n):
-            centres, probs = maps[i].occupied_in_sphere(states[i, :3], oc.histogram_radius)
-            h, _ = primary_histogram(centres, probs, np.full(len(probs), r_e), states[i, :3], cell,
-                                     oc.histogram_radius, a, b, azimuth_ref=psi[i])
-            hist[i] = -np.expm1(-h.ravel())
+        n_e, n_z = histogram_shape(cell)
+        h = np.zeros((n, n_e, n_z))
+        leaves = maps.levels[0]
+        _histograms(leaves.tables, leaves.values, leaves.bits, leaves.counts, leaves.key0, leaves.shape, maps.res,
+                    np.ascontiguousarray(states[:, :3]), np.ascontiguousarray(psi), float(oc.histogram_radius),
+                    float(r_e), cell, n_e, n_z, a, b, h)
+        out[:, layout.slice("obstacle_histogram")] = -np.expm1(-h.reshape(n, -1))
     if oc.include_crop:
-        crop = out[:, layout.slice("map_crop")]
-        for i in range(n):
-            crop[i] = map_crop(maps[i], states[i, :3], oc.crop_level, oc.crop_cells, oc.crop_cells_z).ravel()
+        out[:, layout.slice("map_crop")] = map_crops(maps, states[:, :3], oc.crop_level, oc.crop_cells,
+                                                     oc.crop_cells_z).reshape(n, -1)
     np.clip(out, layout.low, layout.high, out=out)
     return out
 
 
-def _neighbour_features(block, states, broadcast, neighbour_ok, k, rng_max, v_max):
+@numba.njit(cache=True, inline="always")
+def _body_x(dx, dy, c, s):
+    """x of a world-frame horizontal vector in a body frame whose yaw has cosine c and sine s."""
+    return c * dx + s * dy
+
+
+@numba.njit(cache=True, inline="always")
+def _body_y(dx, dy, c, s):
+    """y of a world-frame horizontal vector in a body frame whose yaw has cosine c and sine s."""
+    return -s * dx + c * dy
+
+
+@numba.njit(cache=True)
+def _own_features(out, ego, tgt, role, nbr, states, targets, leader, broadcast, neighbour_ok, k, rng_max, v_max, w_max,
+                  vz_max, z_min, z_max, target_clip):
+    """The ego, target, role and neighbour fields of every UAV (starting at columns ``ego``, ``tgt``,
+    ``role`` and ``nbr``; nbr < 0: no neighbour field); see ``ObservationLayout`` for their meaning."""
     n = states.shape[0]
-    vel = np.stack([broadcast[:, V] * np.cos(broadcast[:, PSI]), broadcast[:, V] * np.sin(broadcast[:, PSI]),
-                    broadcast[:, VZ]], axis=1)
-    own_vel = np.stack([states[:, V] * np.cos(states[:, PSI]), states[:, V] * np.sin(states[:, PSI]), states[:, VZ]], axis=1)
-    rel = broadcast[None, :, :3] - states[:, None, :3]               # (n, n, 3)
-    dist = np.linalg.norm(rel, axis=2)
-    dist[np.arange(n), np.arange(n)] = np.inf
-    dist[:, ~neighbour_ok] = np.inf
-    dist[dist > rng_max] = np.inf
-    order = np.argsort(dist, axis=1, kind="stable")[:, :k]
-    feats = block.reshape(n, k, 7)
-    for slot in range(min(k, n - 1)):
-        j = order[:, slot]
-        present = np.isfinite(dist[np.arange(n), j])
-        r = rel[np.arange(n), j]
-        dv = vel[j] - own_vel
-        feats[:, slot, :2] = _body(r[:, :2], states[:, PSI]) / rng_max
-        feats[:, slot, 2] = r[:, 2] / rng_max
-        feats[:, slot, 3:5] = _body(dv[:, :2], states[:, PSI]) / (2.0 * v_max)
-        feats[:, slot, 5] = dv[:, 2] / (2.0 * v_max)
-        feats[:, slot, 6] = 1.0
-        feats[~present, slot, :] = 0.0
+    near = np.empty(max(k, 1), np.int64)
+    near_d = np.empty(max(k, 1))
+    for i in range(n):
+        psi = states[i, PSI]
+        c, s = math.cos(psi), math.sin(psi)
+        out[i, ego] = states[i, V] / v_max
+        out[i, ego + 1] = states[i, W] / w_max
+        out[i, ego + 2] = states[i, VZ] / vz_max if vz_max > 0 else 0.0
+        out[i, ego + 3] = s
+        out[i, ego + 4] = c
+        out[i, ego + 5] = 2.0 * (states[i, Z] - z_min) / (z_max - z_min) - 1.0
+        dx, dy, dz = targets[i, 0] - states[i, 0], targets[i, 1] - states[i, 1], targets[i, 2] - states[i, 2]
+        out[i, tgt] = _body_x(dx, dy, c, s) / target_clip
+        out[i, tgt + 1] = _body_y(dx, dy, c, s) / target_clip
+        out[i, tgt + 2] = dz / target_clip
+        out[i, tgt + 3] = math.sqrt(dx * dx + dy * dy + dz * dz) / target_clip
+        dpsi = broadcast[leader, PSI] - psi
+        out[i, role] = 1.0 if i == leader else 0.0
+        out[i, role + 1] = math.sin(dpsi)
+        out[i, role + 2] = math.cos(dpsi)
+        if nbr < 0:
+            continue
+        # the k nearest broadcasting UAVs within rng_max, nearest first (ties: lower index first)
+        m = 0
+        for j in range(n):
+            if j == i or not neighbour_ok[j]:
+                continue
+            rx, ry, rz = broadcast[j, 0] - states[i, 0], broadcast[j, 1] - states[i, 1], broadcast[j, 2] - states[i, 2]
+            d = math.sqrt(rx * rx + ry * ry + rz * rz)
+            if d > rng_max:
+                continue
+            slot = min(m, k)
+            while slot > 0 and near_d[slot - 1] > d:
+                slot -= 1
+            if slot < k:
+                for q in range(min(m, k - 1), slot, -1):
+                    near[q], near_d[q] = near[q - 1], near_d[q - 1]
+                near[slot], near_d[slot] = j, d
+                m += 1
+        vx, vy = states[i, V] * math.cos(psi), states[i, V] * math.sin(psi)
+        for slot in range(min(m, k)):
+            j = near[slot]
+            col = nbr + 7 * slot
+            rx, ry, rz = broadcast[j, 0] - states[i, 0], broadcast[j, 1] - states[i, 1], broadcast[j, 2] - states[i, 2]
+            ux = broadcast[j, V] * math.cos(broadcast[j, PSI]) - vx
+            uy = broadcast[j, V] * math.sin(broadcast[j, PSI]) - vy
+            uz = broadcast[j, VZ] - states[i, VZ]
+            out[i, col] = _body_x(rx, ry, c, s) / rng_max
+            out[i, col + 1] = _body_y(rx, ry, c, s) / rng_max
+            out[i, col + 2] = rz / rng_max
+            out[i, col + 3] = _body_x(ux, uy, c, s) / (2.0 * v_max)
+            out[i, col + 4] = _body_y(ux, uy, c, s) / (2.0 * v_max)
+            out[i, col + 5] = uz / (2.0 * v_max)
+            out[i, col + 6] = 1.0
+
+@numba.njit(cache=True)
+def _histograms(tables, values, bits, counts, key0, shape, res, positions, psi, radius, r_e, cell, n_e, n_z, a, b, out):
+    """out[m] += the body-frame primary polar histogram of map m's occupied voxels within ``radius``."""
+    for m in range(positions.shape[0]):
+        centres, probs = occupied_cells(tables, values, bits, counts, m, key0, shape, res, positions[m], radius, False)
+        _primary_kernel(centres, probs, np.full(probs.shape[0], r_e), positions[m], cell, n_e, n_z, radius, a, b,
+                        False, psi[m], out[m])
 
 
-def map_crop(occ_map, center: np.ndarray, level: int, cells: int, cells_z: int) -> np.ndarray:
-    """Occupancy probabilities of a world-aligned block of octree-level cells around ``center``.
+def map_crops(maps: MapStore, centers: np.ndarray, level: int, cells: int, cells_z: int) -> np.ndarray:
+    """Occupancy probabilities (N, cells, cells, cells_z) of a world-aligned block of octree-level cells
+    around each map i's ``centers[i]``.
 
     Unknown cells read 0.5; cells outside the map read 0.5 as well (nothing is known there).
     """
-    lvl_origin, lvl_res, grid = occ_map.level(level)
-    idx = np.floor((np.asarray(center) - lvl_origin) / lvl_res).astype(np.int64)
+    n = centers.shape[0]
+    lv = maps.level_blocks(level, np.arange(n))
+    lvl_res = maps.res * 2 ** level
+    idx = np.floor((np.asarray(centers) - lv.key0 * lvl_res) / lvl_res).astype(np.int64)
     lo = idx - np.array([cells // 2, cells // 2, cells_z // 2])
-    shape = np.array([cells, cells, cells_z])
-    out = np.full(tuple(shape), np.nan, np.float32)
-    src_lo = np.maximum(lo, 0)
-    src_hi = np.minimum(lo + shape, grid.shape)
-    if np.all(src_hi > src_lo):
-        dst_lo = src_lo - lo
-        dst_hi = dst_lo + (src_hi - src_lo)
-        out[dst_lo[0]:dst_hi[0], dst_lo[1]:dst_hi[1], dst_lo[2]:dst_hi[2]] = \
-            grid[src_lo[0]:src_hi[0], src_lo[1]:src_hi[1], src_lo[2]:src_hi[2]]
+    out = np.empty((n, cells, cells, cells_z), np.float32)
+    _gather(lv.tables, lv.values, lv.key0, lv.shape, lo, out)
     prob = 1.0 / (1.0 + np.exp(-out))
     return np.where(np.isnan(out), 0.5, prob).astype(np.float32)
 
+
+@numba.njit(cache=True)
+def _gather(tables, values, key0, shape, lo, out):
+    """out[m] = map m's log-odds of the cells lo[m] + (0..) (NaN where unknown or outside)."""
+    for m in range(out.shape[0]):
+        arrays = MapArrays(key0, shape, tables[0][m], tables[1], values)
+        for i in range(out.shape[1]):
+            for j in range(out.shape[2]):
+                for k in range(out.shape[3]):
+                    out[m, i, j, k] = voxel_logodds(arrays, lo[m, 0] + i, lo[m, 1] + j, lo[m, 2] + k)

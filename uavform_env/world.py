@@ -17,8 +17,9 @@ import numpy as np
 # 2.9999999999999996 is cell boundary 3 and a box face on a voxel face does not spill into the next voxel.
 # Also the tie tolerance of the raster: a voxel whose centre is res / 2 from a flat face only touches it.
 _SNAP = 1e-9
-# Refuse grids larger than this instead of failing later with a MemoryError (256 Mi voxels = 256 MB).
-MAX_VOXELS = 2**28
+# Refuse grids larger than this instead of failing later with a MemoryError (2 Gi voxels = 2 GiB of raster;
+# the env also checks its whole estimate against the memory available).
+MAX_VOXELS = 2**31
 
 
 def as_finite(owner: str, name: str, value) -> float:
