@@ -6,6 +6,8 @@ import argparse
 import sys
 from dataclasses import fields
 
+from uavform_env.vector import BACKENDS
+
 from .config import TrainConfig
 
 
@@ -18,7 +20,8 @@ def _train(args) -> int:
             given[name] = tuple(given[name])
     cfg = TrainConfig(**given)                 # invalid hyperparameters fail here, before any env is built
     try:
-        state = train(cfg, args.out, resume=args.resume, progress=not args.quiet)
+        state = train(cfg, args.out, resume=args.resume, progress=not args.quiet, backend=args.backend,
+                      ray_address=args.ray_address)
     except KeyboardInterrupt:
         print(f"interrupted: the last and best checkpoints in {args.out} are intact; add --resume to continue",
               file=sys.stderr)
@@ -37,6 +40,11 @@ def register(subparsers) -> None:
     p.add_argument("--out", required=True, help="run folder (checkpoints, logs, learning curve)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--backend", choices=BACKENDS, default=None,
+                   help="where the --n-envs env copies run: inline (this process), process (worker processes; "
+                        "default when --n-envs > 1) or ray (Ray actors, pip install -e \".[ray]\"); same results")
+    p.add_argument("--ray-address", default=None, metavar="ADDR",
+                   help="with --backend ray: join this Ray cluster (default: $RAY_ADDRESS, else a local Ray)")
     types = {int: int, float: float, str: str}
     for f in fields(TrainConfig):
         flag = "--" + f.name.replace("_", "-")

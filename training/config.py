@@ -16,7 +16,7 @@ class TrainConfig(_Config):
 
     scenario, n_uavs, max_cycles   the training (and evaluation) missions
     timesteps                      agent-steps in total (each UAV-step is one sample of the shared policy)
-    n_envs                         env copies, each in its own process when > 1
+    n_envs                         env copies (worker processes when > 1 unless train's backend says otherwise)
     n_steps, batch_size, n_epochs, learning_rate, gamma, gae_lambda, clip_range, ent_coef, log_std_init,
     net_arch                       PPO's hyperparameters (n_steps per row: a rollout holds
                                    n_steps * n_envs * n_uavs samples)
