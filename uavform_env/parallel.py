@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import socket
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from multiprocessing import get_context
@@ -43,10 +44,23 @@ def connect_ray(address: str | None, num_cpus: int):
     if not ray.is_initialized():
         address = address or os.environ.get("RAY_ADDRESS") or None
         if address:
+            _check_reachable(address)
             try:
                 ray.init(address=address, log_to_driver=False)
-            except ConnectionError as e:
-                raise ValueError(f"--ray-address {address!r}: no Ray cluster answers there ({e})") from e
+            except (ConnectionError, RuntimeError, TimeoutError) as e:
+                raise ValueError(f"Ray address {address!r}: could not join the cluster ({e})") from e
         else:
             ray.init(num_cpus=num_cpus, include_dashboard=False, log_to_driver=False)
     return ray
+
+
+def _check_reachable(address: str, timeout: float = 5.0) -> None:
+    """Fail within ``timeout`` s when nothing listens at a HOST:PORT address (Ray itself retries for minutes)."""
+    host, sep, port = address.split("://", 1)[-1].rpartition(":")
+    if not sep or not port.isdigit():
+        return                                              # "auto" and the like: Ray resolves them
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout).close()
+    except OSError as e:
+        raise ValueError(f"Ray address {address!r}: nothing answers at {host}:{port} ({e}); start the cluster "
+                         "(ray start --head) or fix --ray-address / RAY_ADDRESS") from e
