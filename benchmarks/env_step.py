@@ -1,6 +1,7 @@
 """Env speed with every UAV flying, next to PettingZoo MPE simple_spread and VMAS at the same N, in one run.
 
-    python benchmarks/env_step.py [--ns 5 10 20 50] [--steps 400] [--resets 5] [--copies 16] [--out env_step.json]
+    python benchmarks/env_step.py [--ns 5 10 20 50] [--steps 400] [--resets 5] [--copies 16] [--budget 60]
+                                  [--out env_step.json]
 
 Ours: the fusion expert flies forest (``n_uavs=N``, the episode seed ``--seed``) for ``--steps`` steps and
 its actions are recorded; a fresh process then replays them on the same episode and times the step loop
@@ -66,7 +67,7 @@ def record(n: int, seed: int, steps: int, path: str) -> dict:
     return {"recorded_steps": len(actions), "expert_wall_s": time.perf_counter() - t0}
 
 
-def ours(n: int, seed: int, steps: int, resets: int, path: str) -> dict:
+def ours(n: int, seed: int, steps: int, resets: int, path: str, budget: float) -> dict:
     from uavform_env import parallel_env
 
     acts = np.load(path)
@@ -82,21 +83,22 @@ def ours(n: int, seed: int, steps: int, resets: int, path: str) -> dict:
     penv = parallel_env(**_ours_kwargs(n, seed, steps))               # layout_seed: the recorded layout
     env = penv.unwrapped
     penv.reset(seed=seed)
-    alive = 0
-    agent_steps = 0
+    alive = agent_steps = done = 0
     t0 = time.perf_counter()
     for a in acts:
         live = penv.agents
         agent_steps += len(live)
         penv.step({ag: a[i] for i, ag in enumerate(agents) if ag in live})
         alive += int(env.active.sum())
+        done += 1
+        if time.perf_counter() - t0 > budget:
+            break
     wall = time.perf_counter() - t0
     return {"agent_steps_per_s": agent_steps / wall, "reset_ms": 1e3 * statistics.median(reset_times),
-            "peak_rss_mb": _peak_rss_mb(), "import_rss_mb": imports, "alive": alive / (len(acts) * n),
-            "steps": len(acts)}
+            "peak_rss_mb": _peak_rss_mb(), "import_rss_mb": imports, "alive": alive / (done * n), "steps": done}
 
 
-def mpe(n: int, seed: int, steps: int, resets: int) -> dict:
+def mpe(n: int, seed: int, steps: int, resets: int, budget: float) -> dict:
     from mpe2 import simple_spread_v3
 
     imports = _peak_rss_mb()
@@ -112,15 +114,18 @@ def mpe(n: int, seed: int, steps: int, resets: int) -> dict:
     agents = list(penv.agents)
     dim = penv.action_space(agents[0]).shape[0]
     acts = rng.uniform(0, 1, (steps, n, dim)).astype(np.float32)     # simple_spread's continuous Box is [0, 1]
-    t0 = time.perf_counter()
+    done, t0 = 0, time.perf_counter()
     for a in acts:
         penv.step({ag: a[i] for i, ag in enumerate(agents)})
+        done += 1
+        if time.perf_counter() - t0 > budget:
+            break
     wall = time.perf_counter() - t0
-    return {"agent_steps_per_s": n * steps / wall, "reset_ms": 1e3 * statistics.median(reset_times),
+    return {"agent_steps_per_s": n * done / wall, "steps": done, "reset_ms": 1e3 * statistics.median(reset_times),
             "peak_rss_mb": _peak_rss_mb(), "import_rss_mb": imports}
 
 
-def vmas(n: int, seed: int, steps: int, resets: int) -> dict:
+def vmas(n: int, seed: int, steps: int, resets: int, budget: float) -> dict:
     import torch
     import vmas as vmas_lib
 
@@ -137,15 +142,18 @@ def vmas(n: int, seed: int, steps: int, resets: int) -> dict:
         reset_times.append(time.perf_counter() - t0)
     gen = torch.Generator().manual_seed(seed)
     acts = torch.rand((steps, n, 1, 2), generator=gen) * 2 - 1
-    t0 = time.perf_counter()
+    done, t0 = 0, time.perf_counter()
     for a in acts:
         env.step(list(a))
+        done += 1
+        if time.perf_counter() - t0 > budget:
+            break
     wall = time.perf_counter() - t0
-    return {"agent_steps_per_s": n * steps / wall, "reset_ms": 1e3 * statistics.median(reset_times),
+    return {"agent_steps_per_s": n * done / wall, "steps": done, "reset_ms": 1e3 * statistics.median(reset_times),
             "peak_rss_mb": _peak_rss_mb(), "import_rss_mb": imports}
 
 
-def vector(n: int, copies: int, seed: int, steps: int, path: str) -> dict:
+def vector(n: int, copies: int, seed: int, steps: int, path: str, budget: float) -> dict:
     from uavform_env import parallel_env
     from uavform_env.vector import VectorEnv
 
@@ -157,15 +165,18 @@ def vector(n: int, copies: int, seed: int, steps: int, path: str) -> dict:
     t0 = time.perf_counter()
     venv.reset(seed=seed)                       # copy k: episode seed seed + k, the recorded layout
     reset_all = time.perf_counter() - t0
-    alive = 0
+    alive = done = 0
     t0 = time.perf_counter()
     for a in acts:
         venv.step(np.broadcast_to(a, (copies, *a.shape)))
         alive += sum(int(e.unwrapped.active.sum()) for e in venv.envs)
+        done += 1
+        if time.perf_counter() - t0 > budget:
+            break
     wall = time.perf_counter() - t0
-    return {"agent_steps_per_s": copies * n * len(acts) / wall, "reset_all_ms": 1e3 * reset_all,
-            "peak_rss_mb": _peak_rss_mb(), "import_rss_mb": imports, "alive": alive / (len(acts) * n * copies),
-            "steps": len(acts)}
+    return {"agent_steps_per_s": copies * n * done / wall, "reset_all_ms": 1e3 * reset_all,
+            "peak_rss_mb": _peak_rss_mb(), "import_rss_mb": imports, "alive": alive / (done * n * copies),
+            "steps": done}
 
 
 CHILDREN = {"record": record, "ours": ours, "mpe": mpe, "vmas": vmas, "vector": vector}
@@ -196,17 +207,19 @@ def to_markdown(result: dict) -> str:
              "(MPE, VMAS one env on CPU). agent-steps/s | reset ms (median of "
              f"{result['resets']}) | peak RSS MB (in brackets: after the imports, before the env), each "
              "configuration in its own process.", "",
-             "| N | ours agent-steps/s | alive | ours reset ms | ours peak RSS MB | MPE agent-steps/s | MPE reset ms "
-             "| MPE peak RSS MB | VMAS agent-steps/s | VMAS reset ms | VMAS peak RSS MB | ours / MPE |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| N | ours agent-steps/s | steps | alive | ours reset ms | ours peak RSS MB | MPE agent-steps/s "
+             "| MPE reset ms | MPE peak RSS MB | VMAS agent-steps/s | steps | VMAS reset ms | VMAS peak RSS MB "
+             "| ours / MPE |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for row in result["rows"]:
         o, m, v = row["ours"], row["mpe"], row["vmas"]
         ratio = (f"{o['agent_steps_per_s'] / m['agent_steps_per_s']:.2f}"
                  if "agent_steps_per_s" in o and "agent_steps_per_s" in m else "n/a")
-        lines.append(f"| {row['n']} | {_fmt(o, 'agent_steps_per_s', '.0f')} | {_fmt(o, 'alive', '.2f')} | "
+        lines.append(f"| {row['n']} | {_fmt(o, 'agent_steps_per_s', '.0f')} | {_fmt(o, 'steps', 'd')} | "
+                     f"{_fmt(o, 'alive', '.2f')} | "
                      f"{_fmt(o, 'reset_ms', '.1f')} | {_rss(o)} | "
                      f"{_fmt(m, 'agent_steps_per_s', '.0f')} | {_fmt(m, 'reset_ms', '.2f')} | "
-                     f"{_rss(m)} | {_fmt(v, 'agent_steps_per_s', '.0f')} | "
+                     f"{_rss(m)} | {_fmt(v, 'agent_steps_per_s', '.0f')} | {_fmt(v, 'steps', 'd')} | "
                      f"{_fmt(v, 'reset_ms', '.2f')} | {_rss(v)} | {ratio} |")
     errors = [f"- N={row['n']} {name}: {row[name]['error']}" for row in result["rows"]
               for name in ("ours", "mpe", "vmas") if "error" in row[name]]
@@ -214,8 +227,10 @@ def to_markdown(result: dict) -> str:
     if vec is not None:
         lines += ["", f"Vector env (uavform_env.vector.VectorEnv), K = {vec['copies']} copies of N = {vec['n']}, "
                       "every copy replaying the expert's flight:", "",
-                  "| K x N | agent-steps/s | alive | reset of all copies ms | peak RSS MB |", "|---|---|---|---|---|",
+                  "| K x N | agent-steps/s | steps | alive | reset of all copies ms | peak RSS MB |",
+                  "|---|---|---|---|---|---|",
                   f"| {vec['copies']} x {vec['n']} | {_fmt(vec, 'agent_steps_per_s', '.0f')} | "
+                  f"{_fmt(vec, 'steps', 'd')} | "
                   f"{_fmt(vec, 'alive', '.2f')} | {_fmt(vec, 'reset_all_ms', '.0f')} | "
                   f"{_rss(vec)} |"]
         if "error" in vec:
@@ -233,6 +248,9 @@ def main() -> None:
     parser.add_argument("--copies", type=int, default=16, help="copies in the vector-env line (0: skip it)")
     parser.add_argument("--vector-n", type=int, default=5, help="UAVs per copy in the vector-env line")
     parser.add_argument("--seed", type=int, default=0, help="the recorded episode's seed")
+    parser.add_argument("--budget", type=float, default=60.0,
+                        help="seconds per timed step loop: a slower configuration is timed over the steps done by "
+                             "then (the steps column says how many)")
     parser.add_argument("--out", default=None, help="also write the results as JSON")
     parser.add_argument("--child", choices=sorted(CHILDREN), help=argparse.SUPPRESS)
     parser.add_argument("--child-args", help=argparse.SUPPRESS)
@@ -240,9 +258,9 @@ def main() -> None:
     if args.child:
         print(json.dumps(CHILDREN[args.child](**json.loads(args.child_args))))
         return
-    for name in ("steps", "resets"):
-        if getattr(args, name) < 1:
-            parser.error(f"--{name} must be >= 1")
+    for name in ("steps", "resets", "budget"):
+        if getattr(args, name) <= 0:
+            parser.error(f"--{name} must be > 0")
     if min(args.ns) < 1 or args.copies < 0 or args.vector_n < 1:
         parser.error("--ns and --vector-n must be >= 1 and --copies >= 0")
     result = {"scenario": SCENARIO, "steps": args.steps, "resets": args.resets, "seed": args.seed, "rows": []}
@@ -251,10 +269,10 @@ def main() -> None:
             path = str(Path(tmp) / f"expert-{n}.npy")
             rec = _child("record", n=n, seed=args.seed, steps=args.steps, path=path)
             row = {"n": n, "record": rec}
-            row["ours"] = rec if "error" in rec else _child("ours", n=n, seed=args.seed, steps=args.steps,
-                                                            resets=args.resets, path=path)
-            row["mpe"] = _child("mpe", n=n, seed=args.seed, steps=args.steps, resets=args.resets)
-            row["vmas"] = _child("vmas", n=n, seed=args.seed, steps=args.steps, resets=args.resets)
+            common = dict(n=n, seed=args.seed, steps=args.steps, resets=args.resets, budget=args.budget)
+            row["ours"] = rec if "error" in rec else _child("ours", path=path, **common)
+            row["mpe"] = _child("mpe", **common)
+            row["vmas"] = _child("vmas", **common)
             result["rows"].append(row)
             print(f"N={n} done", file=sys.stderr, flush=True)
         if args.copies:
@@ -263,7 +281,7 @@ def main() -> None:
                 _child("record", n=args.vector_n, seed=args.seed, steps=args.steps, path=path)
             result["vector"] = {"copies": args.copies, "n": args.vector_n,
                                 **_child("vector", n=args.vector_n, copies=args.copies, seed=args.seed,
-                                         steps=args.steps, path=path)}
+                                         steps=args.steps, path=path, budget=args.budget)}
     print(to_markdown(result), end="")
     if args.out:
         from uavform_env.files import atomic_write_json

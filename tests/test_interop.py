@@ -124,7 +124,7 @@ def _assert_same_step(a, b, where):
             np.testing.assert_array_equal(info_a[k], info_b[k], err_msg=f"{where}: info {k}")
 
 
-# The base env only: tests/test_training.py already compares processes=True with in-process copies for
+# The base env only: tests/test_training.py already compares backend="process" with in-process copies for
 # ResidualWeightEnv (zero actions), and every worker process costs seconds of imports (SB3 and torch).
 @pytest.mark.parametrize("variant", ["base"])
 def test_shared_policy_vecenv_processes_match_in_process(variant):

@@ -111,3 +111,22 @@ def test_training_copies_run_as_ray_actors(cluster):
     on_processes = _rollout(SharedPolicyVecEnv(make_small, n_copies=2, backend="process"))
     for a, b in zip(on_ray, on_processes):
         np.testing.assert_array_equal(a, b)
+
+
+def test_uavform_train_on_the_cluster_matches_worker_processes(cluster, tmp_path):
+    from stable_baselines3 import PPO
+
+    from training.config import TrainConfig
+    from training.train import train
+
+    cfg = TrainConfig(scenario="forest", n_uavs=2, max_cycles=20, timesteps=160, n_envs=2, n_steps=40, batch_size=80,
+                      n_epochs=1, eval_every=10_000, eval_seeds=(500,), net_arch=(16,))
+    states, params = [], []
+    for backend, address in (("process", None), ("ray", cluster.address)):
+        out = tmp_path / backend
+        states.append(train(cfg, out, progress=False, backend=backend, ray_address=address))
+        params.append(PPO.load(out / "last.zip", device="cpu").policy.state_dict())
+    assert states[0]["timesteps"] == states[1]["timesteps"] == 160
+    assert states[0]["best"] == states[1]["best"]
+    for name in params[0]:
+        assert params[0][name].equal(params[1][name]), f"{name} differs between the process and Ray backends"

@@ -100,7 +100,7 @@ def train(cfg: TrainConfig, out: str | os.PathLike, *, resume: bool = False, pro
     if ray_address is not None and backend != "ray":
         raise ValueError(f"ray_address={ray_address!r}: only with backend 'ray'")
     if backend == "ray":
-        connect_ray(ray_address, cfg.n_envs)    # a missing Ray or an unreachable cluster fails before any file is written
+        connect_ray(ray_address, cfg.n_envs)    # no Ray, or no cluster at the address: fail before writing anything
     out = Path(out)
     state = _prepare_folder(cfg, out, resume)
     torch.set_num_threads(1)          # a small MLP: one thread is fastest and leaves the cores to the env copies

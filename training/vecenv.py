@@ -173,10 +173,8 @@ class SharedPolicyVecEnv(VecEnv):
                 shards.append(s)
                 local.append(mine)
         results = self._call(cmd, [(*args, mine) for mine in local], shards)
-        out = {}
-        for s, mine, values in zip(shards, local, results):
-            out.update({self.firsts[s] + c: v for c, v in zip(mine, values if values is not None else [None] * len(mine))})
-        return out
+        return {self.firsts[s] + c: v for s, mine, values in zip(shards, local, results)
+                for c, v in zip(mine, values)}
 
     def get_attr(self, attr_name: str, indices=None) -> list:
         values = self._per_copy("get_attr", indices, attr_name)

@@ -181,9 +181,9 @@ class VectorEnv:
     def get_attr(self, name: str, indices: Sequence[int] | None = None) -> list:
         return [getattr(self.envs[k], name) for k in self._copies(indices)]
 
-    def set_attr(self, name: str, value, indices: Sequence[int] | None = None) -> None:
-        for k in self._copies(indices):
-            setattr(self.envs[k], name, value)
+    def set_attr(self, name: str, value, indices: Sequence[int] | None = None) -> list[None]:
+        """Set the attribute on the copies ``indices`` (default all); one None per copy, like ``env_method``."""
+        return [setattr(self.envs[k], name, value) for k in self._copies(indices)]
 
     def env_method(self, name: str, args: tuple = (), kwargs: dict | None = None,
                    indices: Sequence[int] | None = None) -> list:

@@ -159,7 +159,7 @@ def run_suite(suite: Suite, policies: list[str], out: str | os.PathLike, *, work
         raise ValueError(f"time_limit={time_limit!r}: expected a positive number of seconds or None")
     check_policies(policies)
     if backend == "ray":
-        connect_ray(ray_address, workers)      # a missing Ray or an unreachable cluster fails before any file is written
+        connect_ray(ray_address, workers)      # no Ray, or no cluster at the address: fail before writing anything
     done = prepare_folder(suite, out, resume)
     fingerprints = {p: policy_fingerprint(p) for p in policies}
     code = code_version()
