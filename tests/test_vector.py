@@ -140,10 +140,8 @@ def test_missing_ray_is_a_one_line_error_with_the_pip_command(monkeypatch, tmp_p
 
 
 # --------------------------------------------------------------------------------------- SB3 and TorchRL
-sb3 = pytest.importorskip("stable_baselines3")
-
-
 def test_sb3_vecenv_view():
+    pytest.importorskip("stable_baselines3")
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecCheckNan, VecMonitor
     from stable_baselines3.common.vec_env.util import obs_space_info

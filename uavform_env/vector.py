@@ -141,12 +141,15 @@ class VectorEnv:
         out = self._step_copies(acts)
         if self.autoreset:
             self._restart_ended(*out)
-        obs, rewards, terminated, truncated, infos = out
-        return obs, rewards, terminated, truncated, infos
+        return out
 
     def _step_copies(self, acts: np.ndarray):
-        """One step of every copy. The only per-copy loop of a step: a kernel batched over copies (one call
-        per stage for all K x N UAVs) replaces this loop and writes the same arrays."""
+        """One step of every copy, as ``step`` returns it (before the auto-reset).
+
+        The only per-copy loop of a step, and the seam for batched stepping: once the env's stages
+        (dynamics, collisions, sensing, map update, observations, rewards) run as array kernels over any
+        number of UAVs, one call per stage over all n_copies x n_agents UAVs replaces this loop and fills
+        the same arrays; seeding, resets and the adapters above stay as they are."""
         agents = self.possible_agents
         rewards = np.zeros((self.n_copies, self.n_agents), np.float32)
         terminated = np.zeros((self.n_copies, self.n_agents), bool)
