@@ -48,7 +48,7 @@ def two_episodes(tmp_path_factory):
     """The first two episodes of the smoke suite, as a suite file (the CLI takes a path)."""
     smoke = load_suite("smoke")
     path = tmp_path_factory.mktemp("suite") / "smoke2.toml"
-    lines = [f'name = "smoke2"\ndescription = "the first two smoke episodes"\n']
+    lines = ['name = "smoke2"\ndescription = "the first two smoke episodes"\n']
     for e in smoke.episodes[:2]:
         lines.append("[[episode]]\n" + "".join(f"{k} = {json.dumps(v)}\n" for k, v in e.to_dict().items()
                                                 if v is not None))
