@@ -19,7 +19,7 @@ import numpy as np
 def rollout_rate(make_env, copies: int, steps: int) -> float:
     from training.vecenv import SharedPolicyVecEnv
 
-    venv = SharedPolicyVecEnv(make_env, copies, processes=copies > 1)
+    venv = SharedPolicyVecEnv(make_env, copies, backend="process" if copies > 1 else "inline")
     try:
         venv.seed(0)
         venv.reset()
@@ -40,7 +40,8 @@ def training_rate(make_env, copies: int, timesteps: int) -> float:
     from training.vecenv import SharedPolicyVecEnv
 
     cfg = TrainConfig()
-    venv = VecNormalize(VecMonitor(SharedPolicyVecEnv(make_env, copies, processes=copies > 1)))
+    backend = "process" if copies > 1 else "inline"
+    venv = VecNormalize(VecMonitor(SharedPolicyVecEnv(make_env, copies, backend=backend)))
     try:
         model = PPO("MlpPolicy", venv, n_steps=cfg.n_steps, batch_size=cfg.batch_size, n_epochs=cfg.n_epochs,
                     seed=0, device="cpu", policy_kwargs={"net_arch": list(cfg.net_arch)})

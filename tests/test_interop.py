@@ -36,7 +36,7 @@ N_AGENTS = 3
 AGENTS = [f"uav_{i}" for i in range(N_AGENTS)]
 
 # Lambdas on purpose: cloudpickle ships a lambda by value, so the worker processes of
-# SharedPolicyVecEnv(processes=True) import uavform_env and training only, not this module (and with it
+# SharedPolicyVecEnv(backend="process") import uavform_env and training only, not this module (and with it
 # torchrl and tianshou, several seconds per worker).
 MAKERS = {
     "base": lambda: parallel_env(**KW),
@@ -124,12 +124,12 @@ def _assert_same_step(a, b, where):
             np.testing.assert_array_equal(info_a[k], info_b[k], err_msg=f"{where}: info {k}")
 
 
-# The base env only: tests/test_training.py already compares processes=True with in-process copies for
+# The base env only: tests/test_training.py already compares backend="process" with in-process copies for
 # ResidualWeightEnv (zero actions), and every worker process costs seconds of imports (SB3 and torch).
 @pytest.mark.parametrize("variant", ["base"])
 def test_shared_policy_vecenv_processes_match_in_process(variant):
     local = SharedPolicyVecEnv(MAKERS[variant], n_copies=2)
-    remote = SharedPolicyVecEnv(MAKERS[variant], n_copies=2, processes=True)
+    remote = SharedPolicyVecEnv(MAKERS[variant], n_copies=2, backend="process")
     try:
         assert (local.num_envs, local.observation_space, local.action_space) == \
                (remote.num_envs, remote.observation_space, remote.action_space)

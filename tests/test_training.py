@@ -140,7 +140,7 @@ def test_vecenv_seeding_reproduces_and_processes_match():
     again = vec_rollout(SharedPolicyVecEnv(make_small, n_copies=2))[0]
     other = vec_rollout(SharedPolicyVecEnv(make_small, n_copies=2), seed=6)[0]
     assert np.array_equal(first, again) and not np.array_equal(first, other)
-    venv = SharedPolicyVecEnv(make_small, n_copies=2, processes=True)
+    venv = SharedPolicyVecEnv(make_small, n_copies=2, backend="process")
     try:
         assert np.array_equal(vec_rollout(venv)[0], first)
     finally:

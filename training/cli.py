@@ -10,18 +10,20 @@ from dataclasses import fields
 from uavform_env.cli import int_in, number_in
 from uavform_env.config import UAVLimits
 from uavform_env.scenarios import list_scenarios
+from uavform_env.vector import BACKENDS
 
 from .config import FLOAT_BOUNDS, INT_BOUNDS, MINIBATCHES, TrainConfig
 from .residual import REWARD_MODES
 
 # What each TrainConfig field means and its unit; the allowed values come from the bounds in config.py.
 FIELD_HELP = {
-    "scenario": "training and evaluation scenario",
+    "scenario": f"training and evaluation scenario: {' | '.join(list_scenarios())}, or NAME@VERSION to pin a "
+                "generator version (forest@1: the worlds of runs rw1-rw4)",
     "n_uavs": "UAVs per episode",
     "max_cycles": f"step limit of every training and evaluation episode (steps of {UAVLimits().dt:g} s)",
     "timesteps": "agent-steps to train (one UAV for one step is one agent-step); PPO trains whole rollouts, so "
                  "this is rounded up to a multiple of n_steps x n_envs x n_uavs (the run prints the figure)",
-    "n_envs": "env copies, each in its own worker process when > 1",
+    "n_envs": "env copies (see --backend for where they run)",
     "n_steps": "steps per UAV per rollout",
     "batch_size": f"PPO minibatch size in samples; must divide the rollout (n_steps x n_envs x n_uavs); 0 = a "
                   f"1/{MINIBATCHES} of the rollout",
@@ -59,7 +61,8 @@ def _train(args) -> int:
           f"{cfg.n_steps} x {cfg.n_envs} x {cfg.n_uavs} = {cfg.rollout_size()}, minibatches of {cfg.batch_size}",
           flush=True)
     try:
-        state = train(cfg, args.out, resume=args.resume, progress=not args.quiet)
+        state = train(cfg, args.out, resume=args.resume, progress=not args.quiet, backend=args.backend,
+                      ray_address=args.ray_address)
     except KeyboardInterrupt:
         print(f"interrupted: the last and best checkpoints in {args.out} are intact; add --resume to continue",
               file=sys.stderr)
@@ -89,6 +92,11 @@ def register(subparsers) -> None:
     p.add_argument("--out", required=True, help="run folder (checkpoints, logs, learning curve)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--backend", choices=BACKENDS, default=None,
+                   help="where the --n-envs env copies run: inline (this process), process (worker processes; "
+                        "default when --n-envs > 1) or ray (Ray actors, pip install -e \".[ray]\"); same results")
+    p.add_argument("--ray-address", default=None, metavar="ADDR",
+                   help="with --backend ray: join this Ray cluster (default: $RAY_ADDRESS, else a local Ray)")
     for f in fields(TrainConfig):
         flag = "--" + f.name.replace("_", "-")
         allowed = _allowed(f.name)
@@ -105,9 +113,8 @@ def register(subparsers) -> None:
         elif f.name in FLOAT_BOUNDS:
             p.add_argument(flag, type=number_in(*FLOAT_BOUNDS[f.name]), default=None, metavar="X",
                            help=f"{text} (default: {f.default:g})")
-        elif f.name in ("reward", "scenario"):
-            p.add_argument(flag, choices=REWARD_MODES if f.name == "reward" else list_scenarios(), default=None,
-                           help=f"{text} (default: {f.default})")
+        elif f.name == "reward":
+            p.add_argument(flag, choices=REWARD_MODES, default=None, help=f"{text} (default: {f.default})")
         else:
             p.add_argument(flag, type=type(f.default), default=None, help=f"{text} (default: {f.default})")
     p.set_defaults(func=_train)

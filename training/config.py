@@ -28,7 +28,7 @@ class TrainConfig(_Config):
     timesteps                      agent-steps in total (each UAV-step is one sample of the shared policy);
                                    PPO trains on whole rollouts, so the run stops at the first multiple of the
                                    rollout size (``rollout_size()``) at or above it: ``total_timesteps()``
-    n_envs                         env copies, each in its own process when > 1
+    n_envs                         env copies (worker processes when > 1 unless train's backend says otherwise)
     n_steps, batch_size, n_epochs, learning_rate, gamma, gae_lambda, clip_range, ent_coef, log_std_init,
     net_arch                       PPO's hyperparameters (n_steps per row: a rollout holds
                                    n_steps * n_envs * n_uavs samples). batch_size 0 (the default) becomes

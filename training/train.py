@@ -31,12 +31,13 @@ from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 from uavform_env.evaluation.table import RANKING, ranking_key as leaderboard_key
 from uavform_env.files import append_line, atomic_write_json
 from uavform_env.formation_v0 import parallel_env
+from uavform_env.parallel import connect_ray
 from uavform_env.rollout import run_episode
 
 from .checkpoint import ResidualPolicy, checkpoint_meta, read_meta, save_checkpoint
 from .config import TrainConfig
 from .residual import ResidualWeightEnv
-from .vecenv import SharedPolicyVecEnv
+from .vecenv import BACKENDS, SharedPolicyVecEnv
 
 EVAL_COLUMNS = ("timesteps", "wall_time", "success", "collision", "formation_error_rms", "flight_time", "best")
 
@@ -83,15 +84,28 @@ def _prepare_folder(cfg: TrainConfig, out: Path, resume: bool) -> dict:
     return {"timesteps": 0, "best": None, "wall_time": 0.0}
 
 
-def train(cfg: TrainConfig, out: str | os.PathLike, *, resume: bool = False, progress: bool = True) -> dict:
-    """Train (or continue) a residual policy into ``out``; returns the final state (see the module docstring)."""
+def train(cfg: TrainConfig, out: str | os.PathLike, *, resume: bool = False, progress: bool = True,
+          backend: str | None = None, ray_address: str | None = None) -> dict:
+    """Train (or continue) a residual policy into ``out``; returns the final state (see the module docstring).
+
+    ``backend`` places the ``cfg.n_envs`` env copies (``SharedPolicyVecEnv``): "inline" (all in this
+    process), "process" (worker processes; the default when ``n_envs > 1``) or "ray" (Ray actors, on the
+    cluster at ``ray_address`` or ``RAY_ADDRESS``). The backend does not change the results.
+    """
     if not isinstance(cfg, TrainConfig):
         raise ValueError(f"cfg: expected a TrainConfig, got {type(cfg).__name__}")
+    backend = backend if backend is not None else ("process" if cfg.n_envs > 1 else "inline")
+    if backend not in BACKENDS:
+        raise ValueError(f"backend={backend!r}: expected one of {list(BACKENDS)}")
+    if ray_address is not None and backend != "ray":
+        raise ValueError(f"ray_address={ray_address!r}: only with backend 'ray'")
+    if backend == "ray":
+        connect_ray(ray_address, cfg.n_envs)    # no Ray, or no cluster at the address: fail before writing anything
     out = Path(out)
     state = _prepare_folder(cfg, out, resume)
     torch.set_num_threads(1)          # a small MLP: one thread is fastest and leaves the cores to the env copies
     segment = len(list((out / "logs").glob("segment-*")))   # one log folder per (re)start: SB3's CSV overwrites
-    venv = SharedPolicyVecEnv(_MakeEnv(cfg), cfg.n_envs, processes=cfg.n_envs > 1)
+    venv = SharedPolicyVecEnv(_MakeEnv(cfg), cfg.n_envs, backend=backend, ray_address=ray_address)
     venv = VecNormalize(VecMonitor(venv), norm_obs=True, norm_reward=True, gamma=cfg.gamma)
     probe_env = _MakeEnv(cfg)()
     try:

@@ -254,7 +254,8 @@ def _leaderboard(args) -> int:
     print(f"suite {suite.name}: {len(suite.episodes)} episodes, hash {suite.hash}", flush=True)
     try:
         records = run_suite(suite, args.policy, args.out, workers=args.workers, backend=args.backend,
-                            resume=args.resume, time_limit=args.time_limit, progress=not args.quiet)
+                            resume=args.resume, time_limit=args.time_limit, progress=not args.quiet,
+                            ray_address=args.ray_address)
     except KeyboardInterrupt:
         print(f"interrupted: finished episodes are in {args.out}; add --resume to continue", file=sys.stderr)
         return 130
@@ -354,6 +355,9 @@ def build_parser() -> argparse.ArgumentParser:
     lb.add_argument("--workers", type=int_in(1), default=1, help="parallel episodes (default: 1, in this process)")
     lb.add_argument("--backend", choices=["process", "ray"], default="process",
                     help="process pool (default) or Ray tasks (pip install 'uavform[ray]')")
+    lb.add_argument("--ray-address", default=None, metavar="ADDR",
+                    help="with --backend ray: join this Ray cluster (e.g. auto, HOST:6379, ray://HOST:10001) "
+                         "instead of starting a local one (default: $RAY_ADDRESS if set)")
     lb.add_argument("--resume", action="store_true", help="continue a results folder, skipping finished episodes")
     lb.add_argument("--time-limit", type=number_in(0.0, None, lo_open=True), default=900.0,
                     help="wall-clock seconds per episode before it is recorded as failed (default: 900)")

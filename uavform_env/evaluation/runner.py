@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..files import append_line, atomic_write_json, read_jsonl, set_aside_torn_line
-from ..parallel import imap_unordered
+from ..parallel import connect_ray, imap_unordered
 from .suites import Episode, Suite
 
 RESULTS_FILE = "results.jsonl"
@@ -168,21 +168,26 @@ def prepare_folder(suite: Suite, out: str | os.PathLike, resume: bool) -> set[tu
 
 def run_suite(suite: Suite, policies: list[str], out: str | os.PathLike, *, workers: int = 1,
               backend: str = "process", resume: bool = False, time_limit: float | None = None,
-              progress: bool = True) -> list[dict]:
+              progress: bool = True, ray_address: str | None = None) -> list[dict]:
     """Play every (episode, policy) of ``suite`` not yet in ``out`` and append its record; return all records.
 
     ``workers=1`` with the process backend plays in this process; more use a spawn-context process
-    pool. ``backend="ray"`` submits the same ``play`` calls as Ray tasks (``ray.init()`` starts a
-    local cluster unless one is running). Metrics do not depend on the backend or the order.
+    pool. ``backend="ray"`` submits the same ``play`` calls as Ray tasks: on the cluster at ``ray_address``
+    (else ``RAY_ADDRESS``), else on a local Ray of ``workers`` CPUs (``parallel.connect_ray``). Metrics do
+    not depend on the backend or the order.
     """
     if backend not in BACKENDS:
         raise ValueError(f"backend={backend!r}: expected one of {list(BACKENDS)}")
+    if ray_address is not None and backend != "ray":
+        raise ValueError(f"ray_address={ray_address!r}: only with backend='ray'")
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ValueError(f"workers={workers!r}: expected an integer >= 1")
     if time_limit is not None and not (isinstance(time_limit, (int, float)) and time_limit > 0
                                        and math.isfinite(time_limit)):
         raise ValueError(f"time_limit={time_limit!r}: expected a positive number of seconds or None")
     check_policies(policies)
+    if backend == "ray":
+        connect_ray(ray_address, workers)      # no Ray, or no cluster at the address: fail before writing anything
     done = prepare_folder(suite, out, resume)
     fingerprints = {p: policy_fingerprint(p) for p in policies}
     code = code_version()
@@ -199,7 +204,7 @@ def run_suite(suite: Suite, policies: list[str], out: str | os.PathLike, *, work
     with tqdm(total=len(calls), desc=f"suite {suite.name} [{suite.hash}]", unit="episode",
               disable=not progress) as bar:
         failed = 0
-        for rec in _execute(calls, workers, backend):
+        for rec in _execute(calls, workers, backend, ray_address):
             record(rec)
             failed += rec["status"] != "ok"
             bar.update(1)
@@ -207,23 +212,18 @@ def run_suite(suite: Suite, policies: list[str], out: str | os.PathLike, *, work
     return read_results(out)
 
 
-def _execute(calls: list[tuple], workers: int, backend: str):
+def _execute(calls: list[tuple], workers: int, backend: str, ray_address: str | None = None):
     """Yield ``play(*call)`` for every call, in completion order."""
     if not calls:
         return
     if backend == "ray":
-        yield from _execute_ray(calls, workers)
+        yield from _execute_ray(calls, workers, ray_address)
     else:
         yield from imap_unordered(play, calls, workers)
 
 
-def _execute_ray(calls: list[tuple], workers: int):
-    try:
-        import ray
-    except ImportError as e:
-        raise ValueError("backend 'ray' needs Ray: pip install 'uavform[ray]'") from e
-    if not ray.is_initialized():
-        ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+def _execute_ray(calls: list[tuple], workers: int, address: str | None = None):
+    ray = connect_ray(address, workers)
     remote_play = ray.remote(num_cpus=1)(play)
     pending = [remote_play.remote(*call) for call in calls]
     try:
