@@ -18,7 +18,7 @@ from dataclasses import dataclass, fields
 import numba
 import numpy as np
 
-from uavform_env.config import UAVLimits, _check_choice, _check_range, _Config
+from uavform_env.config import Config, UAVLimits, check_choice, check_range
 from uavform_env.dynamics import wrap
 
 NORM_MODES = ("sum", "minmax")
@@ -39,7 +39,7 @@ _TIE_TOL = 1e-12  # relative: scores (and |w|) this close count as equal, so the
 
 
 @dataclass(frozen=True)
-class DWAConfig(_Config):
+class DWAConfig(Config):
     """Weights, horizon and the E8/E10/E11 switches of the DWA planner (spec (b), (c), Appendix A).
 
     Fields tagged [X] in the spec are reconstructions and stay configurable:
@@ -82,26 +82,26 @@ class DWAConfig(_Config):
 
     def __post_init__(self):
         o = "DWAConfig"
-        _check_range(o, "T_p", self.T_p, 0.0, 60.0, lo_open=True)
+        check_range(o, "T_p", self.T_p, 0.0, 60.0, lo_open=True)
         for name in ("alpha", "beta", "gamma", "alpha0", "eps0"):
-            _check_range(o, name, getattr(self, name), 0.0, None)
+            check_range(o, name, getattr(self, name), 0.0, None)
         for name in ("D_cap", "r_goal", "v_res", "w_res", "R_uu"):
-            _check_range(o, name, getattr(self, name), 0.0, None, lo_open=True)
-        _check_choice(o, "norm", self.norm, NORM_MODES)
+            check_range(o, name, getattr(self, name), 0.0, None, lo_open=True)
+        check_choice(o, "norm", self.norm, NORM_MODES)
         for name in IMPROVEMENT_FLAGS + ("approach_speed_profile",):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{o}.{name}={getattr(self, name)!r}: expected a bool")
-        _check_range(o, "kappa", self.kappa, 0.0, 1.0, hi_open=True)
+        check_range(o, "kappa", self.kappa, 0.0, 1.0, hi_open=True)
         if self.R_sw is not None:
-            _check_range(o, "R_sw", self.R_sw, 0.0, None, lo_open=True)
+            check_range(o, "R_sw", self.R_sw, 0.0, None, lo_open=True)
         if self.dist_cap is not None:
-            _check_range(o, "dist_cap", self.dist_cap, 0.0, self.D_cap, lo_open=True)
-        _check_choice(o, "heading_ref", self.heading_ref, HEADING_REFS)
-        _check_choice(o, "astar_weight_mode", self.astar_weight_mode, ASTAR_WEIGHT_MODES)
-        _check_choice(o, "rotation_mode", self.rotation_mode, ROTATION_MODES)
-        _check_choice(o, "rot_weight_mode", self.rot_weight_mode, ROT_WEIGHT_MODES)
-        _check_range(o, "d_in", self.d_in, 0.0, None)
-        _check_range(o, "d_out", self.d_out, 0.0, None)
+            check_range(o, "dist_cap", self.dist_cap, 0.0, self.D_cap, lo_open=True)
+        check_choice(o, "heading_ref", self.heading_ref, HEADING_REFS)
+        check_choice(o, "astar_weight_mode", self.astar_weight_mode, ASTAR_WEIGHT_MODES)
+        check_choice(o, "rotation_mode", self.rotation_mode, ROTATION_MODES)
+        check_choice(o, "rot_weight_mode", self.rot_weight_mode, ROT_WEIGHT_MODES)
+        check_range(o, "d_in", self.d_in, 0.0, None)
+        check_range(o, "d_out", self.d_out, 0.0, None)
         if not self.d_in < self.d_out:
             raise ValueError(f"{o}.d_out={self.d_out!r} must exceed d_in={self.d_in!r} (the rotation weight "
                              "ramps from 0 at d_in to eps0 at d_out)")

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from uavform_env.config import _check_range
+from uavform_env.config import check_range
 from uavform_env.dynamics import PSI, wrap
 
 from .policy import OnboardPolicy
@@ -46,7 +46,7 @@ class APFConfig:
 
     def __post_init__(self):
         for name in ("k_att", "k_rep", "d0", "k_uu", "d0_uu", "k_psi", "k_z"):
-            _check_range("APFConfig", name, getattr(self, name), 0.0, None)
+            check_range("APFConfig", name, getattr(self, name), 0.0, None)
 
 
 class APF(OnboardPolicy):

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from uavform_env.config import _check_choice, _check_int, _check_range, _Config
+from uavform_env.config import Config, check_choice, check_int, check_range
 from uavform_env.scenarios import list_scenarios
 
 from .residual import ResidualConfig
 
 
 @dataclass(frozen=True)
-class TrainConfig(_Config):
+class TrainConfig(Config):
     """Everything a training run depends on; checked before any training starts.
 
     scenario, n_uavs, max_cycles   the training (and evaluation) missions
@@ -54,27 +54,27 @@ class TrainConfig(_Config):
 
     def __post_init__(self):
         name = "TrainConfig"
-        _check_choice(name, "scenario", self.scenario, tuple(list_scenarios()))
-        _check_int(name, "n_uavs", self.n_uavs, 1, 20)
-        _check_int(name, "max_cycles", self.max_cycles, 10)
-        _check_int(name, "timesteps", self.timesteps, 1)
-        _check_int(name, "n_envs", self.n_envs, 1, 64)
-        _check_int(name, "n_steps", self.n_steps, 2)
-        _check_int(name, "batch_size", self.batch_size, 2)
-        _check_int(name, "n_epochs", self.n_epochs, 1)
-        _check_range(name, "learning_rate", self.learning_rate, 0.0, 1.0, lo_open=True)
-        _check_range(name, "gamma", self.gamma, 0.0, 1.0, lo_open=True)
-        _check_range(name, "gae_lambda", self.gae_lambda, 0.0, 1.0)
-        _check_range(name, "clip_range", self.clip_range, 0.0, 1.0, lo_open=True)
-        _check_range(name, "ent_coef", self.ent_coef, 0.0, 1.0)
-        _check_range(name, "log_std_init", self.log_std_init, -5.0, 2.0)
+        check_choice(name, "scenario", self.scenario, tuple(list_scenarios()))
+        check_int(name, "n_uavs", self.n_uavs, 1, 20)
+        check_int(name, "max_cycles", self.max_cycles, 10)
+        check_int(name, "timesteps", self.timesteps, 1)
+        check_int(name, "n_envs", self.n_envs, 1, 64)
+        check_int(name, "n_steps", self.n_steps, 2)
+        check_int(name, "batch_size", self.batch_size, 2)
+        check_int(name, "n_epochs", self.n_epochs, 1)
+        check_range(name, "learning_rate", self.learning_rate, 0.0, 1.0, lo_open=True)
+        check_range(name, "gamma", self.gamma, 0.0, 1.0, lo_open=True)
+        check_range(name, "gae_lambda", self.gae_lambda, 0.0, 1.0)
+        check_range(name, "clip_range", self.clip_range, 0.0, 1.0, lo_open=True)
+        check_range(name, "ent_coef", self.ent_coef, 0.0, 1.0)
+        check_range(name, "log_std_init", self.log_std_init, -5.0, 2.0)
         if not self.net_arch or not all(isinstance(n, int) and not isinstance(n, bool) and n > 0 for n in self.net_arch):
             raise ValueError(f"{name}.net_arch={self.net_arch!r}: expected a non-empty list of positive layer sizes")
         self.residual()
         if not isinstance(self.zero_init, bool):
             raise ValueError(f"{name}.zero_init={self.zero_init!r}: expected true or false")
-        _check_int(name, "seed", self.seed, 0, 2**31 - 1)
-        _check_int(name, "eval_every", self.eval_every, 1)
+        check_int(name, "seed", self.seed, 0, 2**31 - 1)
+        check_int(name, "eval_every", self.eval_every, 1)
         if not self.eval_seeds or not all(isinstance(s, int) and 0 <= s < self.seed for s in self.eval_seeds):
             raise ValueError(f"{name}.eval_seeds={self.eval_seeds!r}: expected a non-empty list of seeds in "
                              f"[0, seed={self.seed}), held out from the training episodes")
