@@ -21,6 +21,7 @@ from typing import NamedTuple
 import numpy as np
 
 from uavform_env.dynamics import PSI, V, VZ, W, commands_to_actions, wrap
+from uavform_env.formation import slot_positions
 from uavform_env.world import grid_frame
 
 from ..astar import GlobalPath, Raster, inflate, plan_path, replan_trigger
@@ -417,14 +418,12 @@ class FusionExpert(OnboardPolicy):
         if self._leader_prediction[0] != key:
             self._leader_prediction = key, _predict_unicycle(lead, cfg.dwa.T_p, lim.dt)
         pred_xy, pred_psi = self._leader_prediction[1]
-        c, s_ = math.cos(pred_psi), math.sin(pred_psi)
-        goal = pred_xy + np.array([c * offset[0] - s_ * offset[1], s_ * offset[0] + c * offset[1]])
+        goal = pred_xy + _rotated(pred_psi, offset[None])[0]
         heading_l = np.array([math.cos(lead[PSI]), math.sin(lead[PSI])])
         lead_moving = not leader_parked(view, cfg)
         a_j = goal - view.state[:2] + (cfg.k_h * heading_l if lead_moving else 0.0)   # a parked slot is the target
         lookahead = view.state[:2] + a_j
-        cl, sl = heading_l
-        slot_now = lead[:2] + np.array([cl * offset[0] - sl * offset[1], sl * offset[0] + cl * offset[1]])
+        slot_now = lead[:2] + _rotated(lead[PSI], offset[None])[0]
         trail = mem.trail
         if cfg.rejoin == "trail" and (not trail or np.hypot(*(lead[:2] - trail[-1])) >= cfg.trail_spacing):
             trail.append(lead[:2].copy())
@@ -581,13 +580,20 @@ def _project_to_altitude(obstacles: np.ndarray, z: float, band: float) -> np.nda
     return out
 
 
+_ORIGIN = np.zeros(2)
+_ORIGIN.flags.writeable = False
+
+
+def _rotated(psi: float, offsets: np.ndarray) -> np.ndarray:
+    """Body-frame ``offsets`` (K, 3) turned by the heading ``psi`` into world-frame x, y (K, 2): the slots of
+    ``slot_positions`` about the origin, to which the caller adds the (predicted) leader position."""
+    return slot_positions(_ORIGIN, psi, offsets, 0.0)[:, :2]
+
+
 def _follower_errors(view) -> np.ndarray:
     """Horizontal slot errors of the followers, from their broadcasts and the leader's own pose."""
     s = view.state
-    ids = view.neighbour_ids
-    c, sn = math.cos(s[PSI]), math.sin(s[PSI])
-    off = view.offsets[ids]
-    slots = s[:2] + np.column_stack([c * off[:, 0] - sn * off[:, 1], sn * off[:, 0] + c * off[:, 1]])
+    slots = s[:2] + _rotated(s[PSI], view.offsets[view.neighbour_ids])
     alive = view.neighbour_alive
     return np.linalg.norm(view.neighbour_states[alive, :2] - slots[alive], axis=1)
 
@@ -613,10 +619,7 @@ def _predict_unicycle(state, horizon: float, dt: float):
 
 def _slots_free(view, psi: float, margin: float) -> bool:
     """Whether every follower slot of a leader at its position with heading ``psi`` is free in its own map."""
-    c, sn = math.cos(psi), math.sin(psi)
-    pos = view.state[:3]
-    for off in view.offsets[1:]:
-        slot = np.array([pos[0] + c * off[0] - sn * off[1], pos[1] + sn * off[0] + c * off[1], view.z_ref + off[2]])
+    for slot in slot_positions(view.state[:2], psi, view.offsets[1:], view.z_ref):
         if np.any(slot[:2] < view.bounds_lo[:2] + margin) or np.any(slot[:2] > view.bounds_hi[:2] - margin):
             return False
         if view.occupancy.occupied_within(slot, margin):
