@@ -12,20 +12,17 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numba
 import numpy as np
 
-from uavform_env.config import Config, check_choice, check_int, check_range
+from uavform_env.config import (Config, boolean, check_bool, check_choice, check_int, check_range, in_range, integer,
+                                one_of)
 
 HEURISTICS = ("octile", "euclidean")
 HEADING_TARGETS = ("goal", "lookahead", "visible_goal")
 SQRT2 = math.sqrt(2.0)
-
-
-def _check_bool(owner: str, name: str, value) -> None:
-    if not isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"{owner}.{name}={value!r}: expected a bool")
 
 
 def _as_point(name: str, xy) -> np.ndarray:
@@ -134,18 +131,12 @@ class AStarConfig(Config):
     replan_period: float = 2.0
     heading_target: str = "goal"
 
-    def __post_init__(self):
-        o = "AStarConfig"
-        check_range(o, "res_g", self.res_g, 0.0, None, lo_open=True)
-        check_choice(o, "heuristic", self.heuristic, HEURISTICS)
-        check_range(o, "weight", self.weight, 0.0, None)
-        _check_bool(o, "allow_corner_cut", self.allow_corner_cut)
-        _check_bool(o, "prune", self.prune)
-        check_range(o, "lookahead", self.lookahead, 0.0, None)
-        check_int(o, "window", self.window, 1)
-        check_range(o, "d_replan", self.d_replan, 0.0, None, lo_open=True)
-        check_range(o, "replan_period", self.replan_period, 0.0, None)
-        check_choice(o, "heading_target", self.heading_target, HEADING_TARGETS)
+    BOUNDS: ClassVar[dict] = {
+        "res_g": in_range(0.0, lo_open=True), "heuristic": one_of(HEURISTICS), "weight": in_range(0.0),
+        "allow_corner_cut": boolean, "prune": boolean, "lookahead": in_range(0.0), "window": integer(1),
+        "d_replan": in_range(0.0, lo_open=True), "replan_period": in_range(0.0),
+        "heading_target": one_of(HEADING_TARGETS),
+    }
 
 
 # ----------------------------------------------------------------------------------------------
@@ -370,7 +361,7 @@ def astar(blocked, start, goal, heuristic: str = "octile", weight: float = 1.0,
     gi, gj = _as_cell("goal", goal, b.shape)
     check_choice("astar", "heuristic", heuristic, HEURISTICS)
     check_range("astar", "weight", weight, 0.0, None)
-    _check_bool("astar", "allow_corner_cut", allow_corner_cut)
+    check_bool("astar", "allow_corner_cut", allow_corner_cut)
     if b[si, sj] or b[gi, gj]:
         return AStarResult(False, np.empty((0, 2), dtype=np.int64), math.inf, 0)
     found, path, cost, expanded = _astar_kernel(b, si, sj, gi, gj, heuristic == "euclidean",
@@ -477,7 +468,7 @@ class GlobalPath:
         if p.ndim != 2 or p.shape[1] != 2 or len(p) == 0 or not np.all(np.isfinite(p)):
             raise ValueError(f"points: expected finite coordinates of shape (K>=1, 2), got shape {p.shape}")
         check_int("GlobalPath", "window", window, 1)
-        _check_bool("GlobalPath", "allow_corner_cut", allow_corner_cut)
+        check_bool("GlobalPath", "allow_corner_cut", allow_corner_cut)
         p.setflags(write=False)
         self.points = p
         self.window = window
@@ -587,7 +578,7 @@ def replan_trigger(path: GlobalPath | None, pos_xy, blocked_inflated, raster: Ra
     Without a path only the periodic trigger applies: new map data is what can open a way.
     """
     check_range("replan_trigger", "t_since_plan", t_since_plan, 0.0, None)
-    _check_bool("replan_trigger", "new_data", new_data)
+    check_bool("replan_trigger", "new_data", new_data)
     periodic = new_data and t_since_plan >= cfg.replan_period
     if path is None:
         return "periodic" if periodic else None

@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
-from typing import NamedTuple
+from typing import ClassVar, NamedTuple
 
 import numba
 import numpy as np
 
-from uavform_env.config import Config, UAVLimits, check_choice, check_range
+from uavform_env.config import Config, UAVLimits, boolean, check_range, in_range, one_of, optional
 from uavform_env.dynamics import wrap
 
 NORM_MODES = ("sum", "minmax")
@@ -81,28 +81,25 @@ class DWAConfig(Config):
     R_uu: float = 0.8
     dist_cap: float | None = None
 
+    BOUNDS: ClassVar[dict] = {
+        "T_p": in_range(0.0, 60.0, lo_open=True),
+        **{name: in_range(0.0) for name in ("alpha", "beta", "gamma", "alpha0", "eps0", "d_in", "d_out")},
+        **{name: in_range(0.0, lo_open=True) for name in ("D_cap", "r_goal", "v_res", "w_res", "R_uu")},
+        "norm": one_of(NORM_MODES),
+        **{name: boolean for name in IMPROVEMENT_FLAGS + ("approach_speed_profile",)},
+        "kappa": in_range(0.0, 1.0, hi_open=True),
+        "R_sw": optional(in_range(0.0, lo_open=True)),
+        "heading_ref": one_of(HEADING_REFS),
+        "astar_weight_mode": one_of(ASTAR_WEIGHT_MODES),
+        "rotation_mode": one_of(ROTATION_MODES),
+        "rot_weight_mode": one_of(ROT_WEIGHT_MODES),
+    }
+
     def __post_init__(self):
+        super().__post_init__()
         o = "DWAConfig"
-        check_range(o, "T_p", self.T_p, 0.0, 60.0, lo_open=True)
-        for name in ("alpha", "beta", "gamma", "alpha0", "eps0"):
-            check_range(o, name, getattr(self, name), 0.0, None)
-        for name in ("D_cap", "r_goal", "v_res", "w_res", "R_uu"):
-            check_range(o, name, getattr(self, name), 0.0, None, lo_open=True)
-        check_choice(o, "norm", self.norm, NORM_MODES)
-        for name in IMPROVEMENT_FLAGS + ("approach_speed_profile",):
-            if not isinstance(getattr(self, name), bool):
-                raise ValueError(f"{o}.{name}={getattr(self, name)!r}: expected a bool")
-        check_range(o, "kappa", self.kappa, 0.0, 1.0, hi_open=True)
-        if self.R_sw is not None:
-            check_range(o, "R_sw", self.R_sw, 0.0, None, lo_open=True)
         if self.dist_cap is not None:
-            check_range(o, "dist_cap", self.dist_cap, 0.0, self.D_cap, lo_open=True)
-        check_choice(o, "heading_ref", self.heading_ref, HEADING_REFS)
-        check_choice(o, "astar_weight_mode", self.astar_weight_mode, ASTAR_WEIGHT_MODES)
-        check_choice(o, "rotation_mode", self.rotation_mode, ROTATION_MODES)
-        check_choice(o, "rot_weight_mode", self.rot_weight_mode, ROT_WEIGHT_MODES)
-        check_range(o, "d_in", self.d_in, 0.0, None)
-        check_range(o, "d_out", self.d_out, 0.0, None)
+            check_range(o, "dist_cap", self.dist_cap, 0.0, self.D_cap, lo_open=True)   # bounded by D_cap
         if not self.d_in < self.d_out:
             raise ValueError(f"{o}.d_out={self.d_out!r} must exceed d_in={self.d_in!r} (the rotation weight "
                              "ramps from 0 at d_in to eps0 at d_out)")

@@ -12,12 +12,12 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, fields
-from typing import NamedTuple
+from typing import ClassVar, NamedTuple
 
 import numba
 import numpy as np
 
-from uavform_env.config import Config, UAVLimits, check_choice, check_int, check_range
+from uavform_env.config import Config, UAVLimits, check_range, in_range, integer, one_of, optional
 from uavform_env.dynamics import wrap
 from uavform_env.polar_histogram import (ENLARGE_MODES, WEIGHT_RELATIONS, _primary_kernel, cell_geometry,
                                          cell_index, histogram_shape, weight_constants)
@@ -50,28 +50,29 @@ class VFHConfig(Config):
     weight_relation: str = "edge_equals_one"
     neighbour_r_extra: float | None = None
 
+    BOUNDS: ClassVar[dict] = {
+        "alpha_h": in_range(0.0, math.pi / 2, lo_open=True),
+        "R_w": in_range(0.0, 100.0, lo_open=True),
+        "a": in_range(0.0, lo_open=True),
+        "b": optional(in_range(0.0, lo_open=True)),
+        "tau_low": in_range(0.0),
+        "win": integer(0, 90),
+        **{name: in_range(0.0) for name in ("k1", "k2", "k3", "k4")},
+        "enlarge_mode": one_of(ENLARGE_MODES),
+        "weight_relation": one_of(WEIGHT_RELATIONS),
+        "neighbour_r_extra": optional(in_range(0.0)),
+    }
+
     def __post_init__(self):
+        super().__post_init__()
         o = "VFHConfig"
-        check_range(o, "alpha_h", self.alpha_h, 0.0, math.pi / 2, lo_open=True)
         try:
             histogram_shape(self.alpha_h)
         except ValueError as err:
             raise ValueError(f"{o}.alpha_h: {err}") from None
-        check_range(o, "R_w", self.R_w, 0.0, 100.0, lo_open=True)
         if self.r_e is not None:
-            check_range(o, "r_e", self.r_e, 0.0, self.R_w, lo_open=True, hi_open=True)
-        check_range(o, "a", self.a, 0.0, None, lo_open=True)
-        if self.b is not None:
-            check_range(o, "b", self.b, 0.0, None, lo_open=True)
-        check_range(o, "tau_low", self.tau_low, 0.0, None)
-        check_range(o, "tau_high", self.tau_high, self.tau_low, None)
-        check_int(o, "win", self.win, 0, 90)
-        for name in ("k1", "k2", "k3", "k4"):
-            check_range(o, name, getattr(self, name), 0.0, None)
-        check_choice(o, "enlarge_mode", self.enlarge_mode, ENLARGE_MODES)
-        check_choice(o, "weight_relation", self.weight_relation, WEIGHT_RELATIONS)
-        if self.neighbour_r_extra is not None:
-            check_range(o, "neighbour_r_extra", self.neighbour_r_extra, 0.0, None)
+            check_range(o, "r_e", self.r_e, 0.0, self.R_w, lo_open=True, hi_open=True)    # bounded by R_w
+        check_range(o, "tau_high", self.tau_high, self.tau_low, None)                     # bounded by tau_low
 
     @functools.lru_cache(maxsize=32)  # noqa: B019 - frozen, hashable config; called every cycle
     def resolve(self, limits: UAVLimits, voxel_size: float) -> tuple[float, float, float, float]:

@@ -85,6 +85,14 @@ def instance_of(cls: type):
     return functools.partial(check_type, cls=cls)
 
 
+def optional(check):
+    """None (a default derived elsewhere) or a value that passes ``check``."""
+    def check_optional(owner: str, name: str, value: Any) -> None:
+        if value is not None:
+            check(owner, name, value)
+    return check_optional
+
+
 boolean = check_bool
 
 
@@ -92,7 +100,7 @@ class Config:
     """Base of the config dataclasses: declared bounds, dict round-trip and validated copies.
 
     ``BOUNDS`` maps a field name to its allowed values (``in_range``, ``integer``, ``one_of``,
-    ``boolean``, ``instance_of``), declared once per field; ``__post_init__`` checks them in table
+    ``boolean``, ``instance_of``, ``optional``), declared once per field; ``__post_init__`` checks them in table
     order. A subclass with checks across fields calls ``super().__post_init__()`` first.
     """
 

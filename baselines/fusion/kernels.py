@@ -7,6 +7,8 @@ import math
 import numba
 import numpy as np
 
+from uavform_env.dynamics import wrap
+
 
 def columns_without_gap(occ_map, centres: np.ndarray, z_min: float, z_max: float, gap: float) -> np.ndarray:
     """x, y of the map columns holding an occupied voxel in [z_min, z_max] but no way through there: a run
@@ -67,7 +69,7 @@ def open_level_way(window_open, cell, target_azimuth, window):
     mid = window_open.shape[0] // 2
     for col in range(window_open.shape[1]):
         if window_open[mid - 1, col] or window_open[mid, col]:
-            if abs(((col + 0.5) * cell - target_azimuth + math.pi) % (2 * math.pi) - math.pi) <= window:
+            if abs(wrap((col + 0.5) * cell - target_azimuth)) <= window:
                 return True
     return False
 
