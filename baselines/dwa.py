@@ -631,20 +631,17 @@ def _yaw_table(psi0, w_axis, dt, n_steps):
     return yaw
 
 
-class _Window(NamedTuple):
-    """The dynamic window's bounds and sample spacing (``_window_bounds``, DWAConfig.v_res / w_res)."""
+class _Params(NamedTuple):
+    """Everything of one planning cycle that ``_plan_kernel`` reads besides the state, the window's bounds and
+    the obstacles: the sample spacing, the rollout model and UAV limits, the clearance caps, the neighbour
+    separation and every input of the eq. 12 score.
 
-    v_lo: float
-    v_hi: float
-    w_lo: float
-    w_hi: float
+    ``lam`` < 1 blends the heading with distance progress (E8); ``vel_target`` < 0 means the plain
+    v / v_max term, otherwise 1 - |v - vel_target| / v_max; ``rot_ref`` is 0 (|w|) or w0 (|w - w0|).
+    """
+
     v_res: float
     w_res: float
-
-
-class _Motion(NamedTuple):
-    """The rollout model: climb rate, step, horizon in steps and the UAV limits the samples are judged by."""
-
     vz: float
     dt: float
     n_steps: int
@@ -652,15 +649,6 @@ class _Motion(NamedTuple):
     a_max: float
     v_max: float
     w_max: float
-
-
-class _Score(NamedTuple):
-    """The clearance caps, the neighbour separation and every input of the eq. 12 score of one cycle.
-
-    ``lam`` < 1 blends the heading with distance progress (E8); ``vel_target`` < 0 means the plain
-    v / v_max term, otherwise 1 - |v - vel_target| / v_max; ``rot_ref`` is 0 (|w|) or w0 (|w - w0|).
-    """
-
     D_cap: float
     dist_cap: float
     R_uu: float
@@ -683,16 +671,16 @@ class _Score(NamedTuple):
 
 
 @numba.njit(cache=True)
-def _plan_kernel(state, window, motion, obstacles, radii, movers_pos, movers_vel, score_in, exact_clearance):
+def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, obstacles, radii, movers_pos, movers_vel, params, exact_clearance):
     """Window sampling, rollout, clearance, admissibility and the eq. 12 score of every sample.
 
-    ``window``, ``motion``, ``score_in``: a ``_Window``, ``_Motion`` and ``_Score``.
-    ``exact_clearance`` evaluates inadmissible samples to the end instead of stopping early.
+    The window is [v_lo, v_hi] x [w_lo, w_hi]; ``params`` is a ``_Params``. ``exact_clearance`` evaluates
+    inadmissible samples to the end instead of stopping early. (One named tuple: numba types each one
+    passed in Python, about 2.5 us a call.)
     """
-    v_lo, v_hi, w_lo, w_hi, v_res, w_res = window
-    vz, dt, n_steps, r_uav, a_max, v_max, w_max = motion
-    (D_cap, dist_cap, R_uu, goal_x, goal_y, la_x, la_y, heading_from_current, lam, progress_reach, vel_target,
-     rot_ref, alpha, kappa, alpha_per_candidate, beta, gamma, eps, minmax) = score_in
+    (v_res, w_res, vz, dt, n_steps, r_uav, a_max, v_max, w_max, D_cap, dist_cap, R_uu, goal_x, goal_y, la_x, la_y,
+     heading_from_current, lam, progress_reach, vel_target, rot_ref, alpha, kappa, alpha_per_candidate, beta, gamma,
+     eps, minmax) = params
     w_axis = _axis(w_lo, w_hi, w_res)
     n_w = w_axis.size
     vs, ws = _window_grid(v_lo, v_hi, w_lo, w_hi, v_res, w_res)
@@ -881,17 +869,17 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
     else:
         alpha = _heading_weight(prev_alignment, cfg.alpha0, cfg.kappa)
 
-    motion = _Motion(float(vz_cmd), float(limits.dt), int(n_steps), float(limits.r_uav), float(limits.a_max),
-                     float(limits.v_max), float(limits.w_max))
-    score_in = _Score(float(cfg.D_cap), float(cfg.D_cap if cfg.dist_cap is None else cfg.dist_cap), float(cfg.R_uu),
-                      goal_x, goal_y, la_x, la_y, cfg.heading_ref == "current", float(lam), float(reach),
-                      float(vel_target), float(w0 if cfg.rotation_mode == "delta" else 0.0), float(alpha),
-                      float(cfg.kappa), per_candidate, float(cfg.beta), float(cfg.gamma),
-                      float(_rotation_weight(cfg, clearance_now, prev_alignment)), cfg.norm == "minmax")
+    params = _Params(float(cfg.v_res), float(cfg.w_res), float(vz_cmd), float(limits.dt), int(n_steps),
+                     float(limits.r_uav), float(limits.a_max), float(limits.v_max), float(limits.w_max),
+                     float(cfg.D_cap), float(cfg.D_cap if cfg.dist_cap is None else cfg.dist_cap), float(cfg.R_uu),
+                     goal_x, goal_y, la_x, la_y, cfg.heading_ref == "current", float(lam), float(reach),
+                     float(vel_target), float(w0 if cfg.rotation_mode == "delta" else 0.0), float(alpha),
+                     float(cfg.kappa), per_candidate, float(cfg.beta), float(cfg.gamma),
+                     float(_rotation_weight(cfg, clearance_now, prev_alignment)), cfg.norm == "minmax")
 
     def run(v_lo_, v_hi_, w_lo_, w_hi_, exact_clearance):
-        window = _Window(float(v_lo_), float(v_hi_), float(w_lo_), float(w_hi_), float(cfg.v_res), float(cfg.w_res))
-        return _plan_kernel(state, window, motion, obstacles, radii, movers_pos, movers_vel, score_in, exact_clearance)
+        return _plan_kernel(state, v_lo_, v_hi_, w_lo_, w_hi_, obstacles, radii, movers_pos, movers_vel, params,
+                            exact_clearance)
 
     pick, vs, ws, score, clearance, admissible, endpoint, alignment = run(v_lo, v_hi, w_lo, w_hi, False)
     candidates = DWACandidates(vs, ws, admissible, clearance, score, endpoint)
