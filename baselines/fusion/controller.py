@@ -408,22 +408,27 @@ class FusionExpert(OnboardPolicy):
         lim = view.limits
         lead = view.leader_state
         offset = view.slot_offset
+        column = False
         if cfg.shape_switching:
-            column_offset = np.array([-view.index * view.config.formation.spacing, 0.0, offset[2]])
             if view.occupancy.occupied_within(view.slot, lim.r_uav + lim.r_safe + view.occupancy.resolution):
                 mem.column_until = t + cfg.column_hold
-            if t < mem.column_until:
-                offset = column_offset
+            column = t < mem.column_until
         key = (lead.tobytes(), cfg.dwa.T_p)              # every follower predicts the same broadcast: once a step
         if self._leader_prediction[0] != key:
-            self._leader_prediction = key, _predict_unicycle(lead, cfg.dwa.T_p, lim.dt)
-        pred_xy, pred_psi = self._leader_prediction[1]
-        goal = pred_xy + _rotated(pred_psi, offset[None])[0]
+            pred_xy, pred_psi = _predict_unicycle(lead, cfg.dwa.T_p, lim.dt)
+            self._leader_prediction = key, (pred_xy, pred_psi, _rotated(pred_psi, view.offsets),
+                                            _rotated(lead[PSI], view.offsets))
+        pred_xy, pred_psi, turned_pred, turned_now = self._leader_prediction[1]   # every slot offset, rotated
+        if column:
+            offset = np.array([-view.index * view.config.formation.spacing, 0.0, offset[2]])
+            turned_pred, turned_now = _rotated(pred_psi, offset[None]), _rotated(lead[PSI], offset[None])
+        row = 0 if column else view.index
+        goal = pred_xy + turned_pred[row]
         heading_l = np.array([math.cos(lead[PSI]), math.sin(lead[PSI])])
         lead_moving = not leader_parked(view, cfg)
         a_j = goal - view.state[:2] + (cfg.k_h * heading_l if lead_moving else 0.0)   # a parked slot is the target
         lookahead = view.state[:2] + a_j
-        slot_now = lead[:2] + _rotated(lead[PSI], offset[None])[0]
+        slot_now = lead[:2] + turned_now[row]
         trail = mem.trail
         if cfg.rejoin == "trail" and (not trail or np.hypot(*(lead[:2] - trail[-1])) >= cfg.trail_spacing):
             trail.append(lead[:2].copy())

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -31,8 +32,7 @@ class Command:
         return np.array([self.v, self.w, self.vz])
 
 
-@dataclass(frozen=True)
-class Cycle:
+class Cycle(NamedTuple):
     """What the rules read of one UAV's cycle: its view, memory and config, the target stage's goal
     (DWA's goal) and lookahead point, the heading goal DWA steered for, DWA's and 3D VFH+'s results
     (``vfh`` None in planar mode) and the neighbours as predicted movers (g6)."""
