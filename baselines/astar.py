@@ -12,20 +12,17 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numba
 import numpy as np
 
-from uavform_env.config import _check_choice, _check_int, _check_range, _Config
+from uavform_env.config import (Config, boolean, check_bool, check_choice, check_int, check_range, in_range, integer,
+                                one_of)
 
 HEURISTICS = ("octile", "euclidean")
 HEADING_TARGETS = ("goal", "lookahead", "visible_goal")
 SQRT2 = math.sqrt(2.0)
-
-
-def _check_bool(owner: str, name: str, value) -> None:
-    if not isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"{owner}.{name}={value!r}: expected a bool")
 
 
 def _as_point(name: str, xy) -> np.ndarray:
@@ -72,12 +69,12 @@ class Raster:
         origin = tuple(float(v) for v in np.asarray(self.origin, dtype=np.float64).ravel())
         if len(origin) != 2 or not all(math.isfinite(v) for v in origin):
             raise ValueError(f"{o}.origin={self.origin!r}: expected 2 finite coordinates")
-        _check_range(o, "res", self.res, 0.0, None, lo_open=True)
+        check_range(o, "res", self.res, 0.0, None, lo_open=True)
         shape = tuple(self.shape)
         if len(shape) != 2:
             raise ValueError(f"{o}.shape={self.shape!r}: expected (nx, ny)")
         for name, n in zip(("shape[0]", "shape[1]"), shape):
-            _check_int(o, name, int(n) if isinstance(n, np.integer) else n, 1)
+            check_int(o, name, int(n) if isinstance(n, np.integer) else n, 1)
         object.__setattr__(self, "origin", origin)
         object.__setattr__(self, "shape", (int(shape[0]), int(shape[1])))
 
@@ -106,7 +103,7 @@ class Raster:
 
 
 @dataclass(frozen=True)
-class AStarConfig(_Config):
+class AStarConfig(Config):
     """Options of spec (d); every [X] choice is a field.
 
     res_g          raster resolution the caller must build the Raster with [D]
@@ -134,18 +131,12 @@ class AStarConfig(_Config):
     replan_period: float = 2.0
     heading_target: str = "goal"
 
-    def __post_init__(self):
-        o = "AStarConfig"
-        _check_range(o, "res_g", self.res_g, 0.0, None, lo_open=True)
-        _check_choice(o, "heuristic", self.heuristic, HEURISTICS)
-        _check_range(o, "weight", self.weight, 0.0, None)
-        _check_bool(o, "allow_corner_cut", self.allow_corner_cut)
-        _check_bool(o, "prune", self.prune)
-        _check_range(o, "lookahead", self.lookahead, 0.0, None)
-        _check_int(o, "window", self.window, 1)
-        _check_range(o, "d_replan", self.d_replan, 0.0, None, lo_open=True)
-        _check_range(o, "replan_period", self.replan_period, 0.0, None)
-        _check_choice(o, "heading_target", self.heading_target, HEADING_TARGETS)
+    BOUNDS: ClassVar[dict] = {
+        "res_g": in_range(0.0, lo_open=True), "heuristic": one_of(HEURISTICS), "weight": in_range(0.0),
+        "allow_corner_cut": boolean, "prune": boolean, "lookahead": in_range(0.0), "window": integer(1),
+        "d_replan": in_range(0.0, lo_open=True), "replan_period": in_range(0.0),
+        "heading_target": one_of(HEADING_TARGETS),
+    }
 
 
 # ----------------------------------------------------------------------------------------------
@@ -160,8 +151,8 @@ def inflate(blocked, radius: float, res: float) -> np.ndarray:
     transform, so both give the same cells (a test compares them).
     """
     b = _as_grid("blocked", blocked)
-    _check_range("inflate", "radius", radius, 0.0, None)
-    _check_range("inflate", "res", res, 0.0, None, lo_open=True)
+    check_range("inflate", "radius", radius, 0.0, None)
+    check_range("inflate", "res", res, 0.0, None, lo_open=True)
     out = np.zeros_like(b)
     _dilate_kernel(b, _disc_offsets(float(radius), float(res)), out)
     return out
@@ -368,9 +359,9 @@ def astar(blocked, start, goal, heuristic: str = "octile", weight: float = 1.0,
     b = _as_grid("blocked", blocked)
     si, sj = _as_cell("start", start, b.shape)
     gi, gj = _as_cell("goal", goal, b.shape)
-    _check_choice("astar", "heuristic", heuristic, HEURISTICS)
-    _check_range("astar", "weight", weight, 0.0, None)
-    _check_bool("astar", "allow_corner_cut", allow_corner_cut)
+    check_choice("astar", "heuristic", heuristic, HEURISTICS)
+    check_range("astar", "weight", weight, 0.0, None)
+    check_bool("astar", "allow_corner_cut", allow_corner_cut)
     if b[si, sj] or b[gi, gj]:
         return AStarResult(False, np.empty((0, 2), dtype=np.int64), math.inf, 0)
     found, path, cost, expanded = _astar_kernel(b, si, sj, gi, gj, heuristic == "euclidean",
@@ -476,8 +467,8 @@ class GlobalPath:
         p = np.array(points, dtype=np.float64)
         if p.ndim != 2 or p.shape[1] != 2 or len(p) == 0 or not np.all(np.isfinite(p)):
             raise ValueError(f"points: expected finite coordinates of shape (K>=1, 2), got shape {p.shape}")
-        _check_int("GlobalPath", "window", window, 1)
-        _check_bool("GlobalPath", "allow_corner_cut", allow_corner_cut)
+        check_int("GlobalPath", "window", window, 1)
+        check_bool("GlobalPath", "allow_corner_cut", allow_corner_cut)
         p.setflags(write=False)
         self.points = p
         self.window = window
@@ -497,7 +488,7 @@ class GlobalPath:
 
     def lookahead(self, pos_xy, L_a: float) -> np.ndarray:
         """P_LA: advance the progress, then the first node at arc length >= L_a beyond it, else the end."""
-        _check_range("lookahead", "L_a", L_a, 0.0, None)
+        check_range("lookahead", "L_a", L_a, 0.0, None)
         i = self.update_progress(pos_xy)
         j = i + int(np.searchsorted(self._arc[i:], self._arc[i] + L_a, side="left"))
         return self.points[min(j, len(self.points) - 1)].copy()
@@ -570,7 +561,7 @@ def resample(points, spacing: float) -> np.ndarray:
     aims through the obstacle the corner goes around.
     """
     p = np.asarray(points, dtype=np.float64)
-    _check_range("resample", "spacing", spacing, 0.0, None, lo_open=True)
+    check_range("resample", "spacing", spacing, 0.0, None, lo_open=True)
     if len(p) < 2:
         return p.copy()
     seg = np.diff(p, axis=0)
@@ -586,8 +577,8 @@ def replan_trigger(path: GlobalPath | None, pos_xy, blocked_inflated, raster: Ra
 
     Without a path only the periodic trigger applies: new map data is what can open a way.
     """
-    _check_range("replan_trigger", "t_since_plan", t_since_plan, 0.0, None)
-    _check_bool("replan_trigger", "new_data", new_data)
+    check_range("replan_trigger", "t_since_plan", t_since_plan, 0.0, None)
+    check_bool("replan_trigger", "new_data", new_data)
     periodic = new_data and t_since_plan >= cfg.replan_period
     if path is None:
         return "periodic" if periodic else None

@@ -10,10 +10,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
-from uavform_env.config import _check_range
+from uavform_env.config import Config, in_range
 from uavform_env.dynamics import PSI, wrap
 
 from .policy import OnboardPolicy
@@ -35,7 +36,7 @@ class Random(OnboardPolicy):
 
 
 @dataclass(frozen=True)
-class APFConfig:
+class APFConfig(Config):
     k_att: float = 1.0
     k_rep: float = 1.5
     d0: float = 2.5          # obstacle influence distance (m)
@@ -44,9 +45,7 @@ class APFConfig:
     k_psi: float = 1.5       # heading gain (1/s)
     k_z: float = 0.5         # altitude gain (1/s)
 
-    def __post_init__(self):
-        for name in ("k_att", "k_rep", "d0", "k_uu", "d0_uu", "k_psi", "k_z"):
-            _check_range("APFConfig", name, getattr(self, name), 0.0, None)
+    BOUNDS: ClassVar[dict] = {name: in_range(0.0) for name in ("k_att", "k_rep", "d0", "k_uu", "d0_uu", "k_psi", "k_z")}
 
 
 class APF(OnboardPolicy):

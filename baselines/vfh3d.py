@@ -11,19 +11,20 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+from typing import ClassVar, NamedTuple
 
 import numba
 import numpy as np
 
-from uavform_env.config import UAVLimits, _check_choice, _check_int, _check_range, _Config
+from uavform_env.config import Config, UAVLimits, check_range, in_range, integer, one_of, optional
 from uavform_env.dynamics import wrap
 from uavform_env.polar_histogram import (ENLARGE_MODES, WEIGHT_RELATIONS, _primary_kernel, cell_geometry,
                                          cell_index, histogram_shape, weight_constants)
 
 
 @dataclass(frozen=True)
-class VFHConfig(_Config):
+class VFHConfig(Config):
     """Parameters of 3D VFH+ (spec (f0)); ``None`` fields are derived per call.
 
     ``r_e`` None -> r_uav + r_safe + voxel size; ``b`` None -> ``weight_constants(a, R_w, r_e,
@@ -49,28 +50,29 @@ class VFHConfig(_Config):
     weight_relation: str = "edge_equals_one"
     neighbour_r_extra: float | None = None
 
+    BOUNDS: ClassVar[dict] = {
+        "alpha_h": in_range(0.0, math.pi / 2, lo_open=True),
+        "R_w": in_range(0.0, 100.0, lo_open=True),
+        "a": in_range(0.0, lo_open=True),
+        "b": optional(in_range(0.0, lo_open=True)),
+        "tau_low": in_range(0.0),
+        "win": integer(0, 90),
+        **{name: in_range(0.0) for name in ("k1", "k2", "k3", "k4")},
+        "enlarge_mode": one_of(ENLARGE_MODES),
+        "weight_relation": one_of(WEIGHT_RELATIONS),
+        "neighbour_r_extra": optional(in_range(0.0)),
+    }
+
     def __post_init__(self):
+        super().__post_init__()
         o = "VFHConfig"
-        _check_range(o, "alpha_h", self.alpha_h, 0.0, math.pi / 2, lo_open=True)
         try:
             histogram_shape(self.alpha_h)
         except ValueError as err:
             raise ValueError(f"{o}.alpha_h: {err}") from None
-        _check_range(o, "R_w", self.R_w, 0.0, 100.0, lo_open=True)
         if self.r_e is not None:
-            _check_range(o, "r_e", self.r_e, 0.0, self.R_w, lo_open=True, hi_open=True)
-        _check_range(o, "a", self.a, 0.0, None, lo_open=True)
-        if self.b is not None:
-            _check_range(o, "b", self.b, 0.0, None, lo_open=True)
-        _check_range(o, "tau_low", self.tau_low, 0.0, None)
-        _check_range(o, "tau_high", self.tau_high, self.tau_low, None)
-        _check_int(o, "win", self.win, 0, 90)
-        for name in ("k1", "k2", "k3", "k4"):
-            _check_range(o, name, getattr(self, name), 0.0, None)
-        _check_choice(o, "enlarge_mode", self.enlarge_mode, ENLARGE_MODES)
-        _check_choice(o, "weight_relation", self.weight_relation, WEIGHT_RELATIONS)
-        if self.neighbour_r_extra is not None:
-            _check_range(o, "neighbour_r_extra", self.neighbour_r_extra, 0.0, None)
+            check_range(o, "r_e", self.r_e, 0.0, self.R_w, lo_open=True, hi_open=True)    # bounded by R_w
+        check_range(o, "tau_high", self.tau_high, self.tau_low, None)                     # bounded by tau_low
 
     @functools.lru_cache(maxsize=32)  # noqa: B019 - frozen, hashable config; called every cycle
     def resolve(self, limits: UAVLimits, voxel_size: float) -> tuple[float, float, float, float]:
@@ -459,20 +461,39 @@ def select_direction(masked, target_dir, current_dir, previous_dir, cfg: VFHConf
     return (None, math.inf) if n_open == 0 else ((row, col), cost)
 
 
+class CycleSetup(NamedTuple):
+    """The configuration's inputs of ``_cycle_kernel`` (from a VFHConfig, the UAV limits and the voxel size)."""
+
+    units: np.ndarray          # (N_e, N_z, 3) cell-centre unit vectors
+    r_e: float                 # voxel enlargement radius
+    r_neighbour: float         # neighbour pseudo-voxel enlargement, r_e + neighbour_r_extra
+    k4: float
+    win: int
+    cell: float                # alpha_h
+    R_w: float
+    a: float
+    b: float
+    paper_floor: bool          # enlarge_mode == "paper_floor"
+    tau_low: float
+    tau_high: float
+    z_min: float
+    z_max: float
+
+
 @numba.njit(cache=True)
-def _cycle_kernel(voxels, voxel_probs, neighbours, pos, previous, psi, r_t, e_max, directions, gains, units, r_e,
-                  r_neighbour, k4, win, cell, R_w, a, b, paper_floor, tau_low, tau_high, z_min, z_max):
+def _cycle_kernel(voxels, voxel_probs, neighbours, pos, previous, psi, r_t, e_max, directions, gains, setup):
     """Stages (f1)-(f7) in one call: (emergency, n_open, row, column, primary, binary, masked, window_open).
 
-    Neighbours join the voxels as pseudo-voxels with o = 1 and radius ``r_neighbour``. The stage
+    Neighbours join the voxels as pseudo-voxels with o = 1 and radius ``setup.r_neighbour``. The stage
     kernels are called directly: ``vfh3d_step`` builds their inputs, so the wrappers' checks
     (primary_histogram, update_binary, masked_histogram) hold by construction. One dispatch, and
     no array built in Python, since each numpy call there costs microseconds on cold caches.
     """
+    units, cell, R_w = setup.units, setup.cell, setup.R_w
     m, k = voxels.shape[0], neighbours.shape[0]
     centres = np.empty((m + k, 3))
     probs = np.ones(m + k)
-    radii = np.full(m + k, r_e)
+    radii = np.full(m + k, setup.r_e)
     for i in range(m):  # element loops: slice assignments would add seconds of compile time
         for c in range(3):
             centres[i, c] = voxels[i, c]
@@ -480,37 +501,61 @@ def _cycle_kernel(voxels, voxel_probs, neighbours, pos, previous, psi, r_t, e_ma
     for i in range(k):
         for c in range(3):
             centres[m + i, c] = neighbours[i, c]
-        radii[m + i] = r_neighbour
+        radii[m + i] = setup.r_neighbour
     n_e, n_z = units.shape[0], units.shape[1]
     primary = np.zeros((n_e, n_z))
     binary = np.empty((n_e, n_z), dtype=np.uint8)
     masked = np.empty((n_e, n_z), dtype=np.uint8)
-    emergency = _primary_kernel(centres, probs, radii, pos, cell, n_e, n_z, R_w, a, b, paper_floor, 0.0, primary)
-    _binary_kernel(primary.ravel(), previous.ravel(), tau_low, tau_high, binary.ravel())
+    emergency = _primary_kernel(centres, probs, radii, pos, cell, n_e, n_z, R_w, setup.a, setup.b,
+                                setup.paper_floor, 0.0, primary)
+    _binary_kernel(primary.ravel(), previous.ravel(), setup.tau_low, setup.tau_high, binary.ravel())
     delta_r, delta_l = _turning_kernel(centres, probs, radii, pos, psi, r_t, R_w)
-    _mask_kernel(binary, psi, delta_r, delta_l, e_max, pos[2], R_w, z_min, z_max, cell, masked)
-    n_open, row, col, _, window_open = _choose_kernel(masked, primary, directions, gains, k4, win, units, cell)
+    _mask_kernel(binary, psi, delta_r, delta_l, e_max, pos[2], R_w, setup.z_min, setup.z_max, cell, masked)
+    n_open, row, col, _, window_open = _choose_kernel(masked, primary, directions, gains, setup.k4, setup.win,
+                                                      units, cell)
     return emergency, n_open, row, col, primary, binary, masked, window_open
 
 
-_last_setup = [None]  # (cfg, limits, voxel_size, setup) of the last cycle
-
-
-def _cycle_setup(cfg: VFHConfig, limits: UAVLimits, voxel_size: float) -> tuple:
-    """(elevation, azimuth, units, r_e, r_neighbour, k4, ..., z_max): the configuration's inputs of ``_cycle_kernel``.
-
-    Kept for the last (cfg, limits, voxel_size): planners pass the same objects every cycle, and
-    an identity test costs far less than ``resolve``'s lru_cache, which hashes both frozen configs.
-    """
-    last = _last_setup[0]
-    if last is not None and last[0] is cfg and last[1] is limits and last[2] == voxel_size:
-        return last[3]
+def _cycle_setup(cfg: VFHConfig, limits: UAVLimits, voxel_size: float) -> tuple[np.ndarray, np.ndarray, CycleSetup]:
+    """(elevation, azimuth, CycleSetup): the cell-centre angles and the kernel's configuration inputs."""
     r_e, a, b, extra = cfg.resolve(limits, voxel_size)
-    setup = (*cell_geometry(cfg.alpha_h), float(r_e), float(r_e + extra), float(cfg.k4), cfg.win, float(cfg.alpha_h),
-             float(cfg.R_w), float(a), float(b), cfg.enlarge_mode == "paper_floor", float(cfg.tau_low),
-             float(cfg.tau_high), limits.z_min, limits.z_max)
-    _last_setup[0] = (cfg, limits, voxel_size, setup)
-    return setup
+    elevation, azimuth, units = cell_geometry(cfg.alpha_h)
+    return elevation, azimuth, CycleSetup(
+        units, float(r_e), float(r_e + extra), float(cfg.k4), cfg.win, float(cfg.alpha_h), float(cfg.R_w), float(a),
+        float(b), cfg.enlarge_mode == "paper_floor", float(cfg.tau_low), float(cfg.tau_high), float(limits.z_min),
+        float(limits.z_max))
+
+
+_GAINS = ("k1", "k2", "k3")  # per-call inputs of the selection (the residual-RL weights), not part of the setup
+_SETUP_FIELDS = tuple(f.name for f in fields(VFHConfig) if f.name not in _GAINS)
+
+
+class VFHPlanner:
+    """``vfh3d_step`` that keeps its configuration-derived setup (``_cycle_setup``) between calls.
+
+    One per controller. The setup is reused while the configuration's fields other than the gains
+    k1..k3, the limits and the voxel size stay the same, so per-UAV weights that change every call
+    (residual RL: a new VFHConfig each time) still reuse it; the same objects as last time are
+    recognised by identity first, which costs far less than comparing fields.
+    """
+
+    def __init__(self):
+        self._last = None  # (cfg, limits, voxel_size, key, setup) of the last call
+
+    def setup(self, cfg: VFHConfig, limits: UAVLimits, voxel_size: float) -> tuple:
+        last = self._last
+        if last is not None and last[0] is cfg and last[1] is limits and last[2] == voxel_size:
+            return last[4]
+        key = (tuple(getattr(cfg, name) for name in _SETUP_FIELDS), limits, voxel_size)
+        setup = last[4] if last is not None and last[3] == key else _cycle_setup(cfg, limits, voxel_size)
+        self._last = (cfg, limits, voxel_size, key, setup)
+        return setup
+
+    def __call__(self, state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos, psi: float, v: float, vz: float,
+                 target_dir, voxel_centres, voxel_probs, voxel_size: float, neighbour_positions=None) -> VFHResult:
+        """One cycle, as ``vfh3d_step``."""
+        return _step(self.setup(cfg, limits, voxel_size), state, cfg, limits, pos, psi, v, vz, target_dir,
+                     voxel_centres, voxel_probs, neighbour_positions)
 
 
 def vfh3d_step(state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos, psi: float, v: float, vz: float,
@@ -519,10 +564,18 @@ def vfh3d_step(state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos, psi: flo
 
     ``voxel_centres`` / ``voxel_probs`` are the occupied voxels around ``pos`` (e.g. from
     ``OccupancyMap.occupied_in_sphere(pos, cfg.R_w)``); neighbour UAVs (K, 3) become pseudo-voxels
-    with o = 1 and enlargement r_e + neighbour_r_extra (spec (g6)).
+    with o = 1 and enlargement r_e + neighbour_r_extra (spec (g6)). A planner calling it every cycle keeps
+    the configuration's setup in a ``VFHPlanner`` instead.
     """
-    setup = _cycle_setup(cfg, limits, voxel_size)
-    elevation, azimuth, units = setup[:3]
+    return _step(_cycle_setup(cfg, limits, voxel_size), state, cfg, limits, pos, psi, v, vz, target_dir,
+                 voxel_centres, voxel_probs, neighbour_positions)
+
+
+def _step(setup: tuple, state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos, psi, v, vz, target_dir,
+          voxel_centres, voxel_probs, neighbour_positions) -> VFHResult:
+    """``vfh3d_step`` with its setup (``_cycle_setup``) given."""
+    elevation, azimuth, kernel_setup = setup
+    units = kernel_setup.units
     pos = np.ascontiguousarray(pos, dtype=np.float64)
     centres = np.ascontiguousarray(voxel_centres, dtype=np.float64).reshape(-1, 3)
     probs = np.ascontiguousarray(voxel_probs, dtype=np.float64)
@@ -546,7 +599,7 @@ def vfh3d_step(state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos, psi: flo
     current_dir = (math.cos(psi) * math.cos(gamma), math.sin(psi) * math.cos(gamma), math.sin(gamma))
     directions, gains = _references(target_dir, current_dir, state.previous_dir, cfg)
     emergency, n_candidates, row, col, primary, binary, masked, window_open = _cycle_kernel(
-        centres, probs, neighbours, pos, previous, float(psi), r_t, float(e_max), directions, gains, *setup[2:])
+        centres, probs, neighbours, pos, previous, float(psi), r_t, float(e_max), directions, gains, kernel_setup)
     state.binary = binary
     if n_candidates == 0:
         nan = math.nan

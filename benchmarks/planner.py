@@ -4,8 +4,9 @@
 
 One episode: the expert flies, the env steps. Expert time is whole ``act()`` calls divided by the
 live UAVs, so the leader's A* (re)plans are amortised over every UAV-step. DWA and 3D VFH+ are
-timed per call inside the same run, with exactly the arguments the expert passes (the module
-functions are wrapped, not re-run). The env figure is ``penv.step`` time divided by the live UAVs.
+timed per call inside the same run, with exactly the arguments the expert passes (the planners are
+injected into the expert wrapped in a timer, not re-run). The env figure is ``penv.step`` time
+divided by the live UAVs.
 The issue's target: expert per UAV-step <= env per UAV-step, and < 1 ms median.
 """
 
@@ -29,35 +30,30 @@ def _timed(fn, log: list):
 
 def measure(scenario: str, n: int, steps: int, seed: int) -> dict[str, np.ndarray]:
     """Per-sample times (s): expert and env per UAV-step, DWA and VFH per call; warm-up excluded."""
-    import baselines.expert as expert_module
+    from baselines.dwa import dwa_plan
     from baselines.expert import FusionExpert
+    from baselines.vfh3d import VFHPlanner
     from uavform_env import parallel_env
 
     times = {"expert": [], "dwa": [], "vfh": [], "env": []}
-    original = expert_module.dwa_plan, expert_module.vfh3d_step
-    expert_module.dwa_plan = _timed(original[0], times["dwa"])
-    expert_module.vfh3d_step = _timed(original[1], times["vfh"])
-    try:
-        penv = parallel_env(scenario=scenario, n_uavs=n, max_cycles=steps + 10)
-        policy = FusionExpert()
-        for warm in (True, False):                       # the first episode compiles / loads the numba kernels
-            obs, _ = penv.reset(seed=seed)
-            policy.reset(penv, seed=seed)
-            for log in times.values():
-                log.clear()
-            for _ in range(5 if warm else steps):
-                live = len(penv.agents)
-                t0 = time.perf_counter()
-                actions = policy.act(obs, penv)
-                t1 = time.perf_counter()
-                obs, *_ = penv.step(actions)
-                t2 = time.perf_counter()
-                times["expert"].append((t1 - t0) / live)
-                times["env"].append((t2 - t1) / live)
-                if not penv.agents:
-                    break
-    finally:
-        expert_module.dwa_plan, expert_module.vfh3d_step = original
+    penv = parallel_env(scenario=scenario, n_uavs=n, max_cycles=steps + 10)
+    policy = FusionExpert(dwa=_timed(dwa_plan, times["dwa"]), vfh=_timed(VFHPlanner(), times["vfh"]))
+    for warm in (True, False):                       # the first episode compiles / loads the numba kernels
+        obs, _ = penv.reset(seed=seed)
+        policy.reset(penv, seed=seed)
+        for log in times.values():
+            log.clear()
+        for _ in range(5 if warm else steps):
+            live = len(penv.agents)
+            t0 = time.perf_counter()
+            actions = policy.act(obs, penv)
+            t1 = time.perf_counter()
+            obs, *_ = penv.step(actions)
+            t2 = time.perf_counter()
+            times["expert"].append((t1 - t0) / live)
+            times["env"].append((t2 - t1) / live)
+            if not penv.agents:
+                break
     return {k: np.asarray(v) for k, v in times.items()}
 
 
@@ -72,7 +68,7 @@ def main() -> None:
     print(f"{args.scenario}, {args.n} UAVs, {len(t['env'])} steps, seed {args.seed}")
     print(f"{'part':<32} {'samples':>8} {'median ms':>10} {'p95 ms':>8}")
     rows = (("expert act() per UAV-step", "expert"), ("  DWA (dwa_plan) per call", "dwa"),
-            ("  3D VFH+ (vfh3d_step) per call", "vfh"), ("env step per UAV", "env"))
+            ("  3D VFH+ (VFHPlanner) per call", "vfh"), ("env step per UAV", "env"))
     for label, key in rows:
         ms = 1e3 * t[key]
         print(f"{label:<32} {ms.size:>8} {np.median(ms):>10.3f} {np.percentile(ms, 95):>8.3f}")

@@ -82,3 +82,23 @@ def test_every_short_name_loads_and_acts(name):
 def test_short_names_include_every_builtin():
     from baselines.registry import BUILTIN
     assert set(BUILTIN) <= set(available_policies())
+
+
+@pytest.mark.parametrize("cls, cross_field", [
+    ("baselines.fusion.config:ExpertConfig", {"e1"}),                  # e1 > e0
+    ("baselines.dwa:DWAConfig", {"dist_cap"}),                         # dist_cap <= D_cap
+    ("baselines.vfh3d:VFHConfig", {"r_e", "tau_high"}),                # r_e < R_w, tau_high >= tau_low
+    ("baselines.astar:AStarConfig", set()),
+    ("baselines.simple:APFConfig", set()),
+])
+def test_every_config_field_has_its_bounds_declared_once(cls, cross_field):
+    import dataclasses
+    import importlib
+
+    module, name = cls.split(":")
+    config = getattr(importlib.import_module(module), name)
+    names = {f.name for f in dataclasses.fields(config)}
+    assert set(config.BOUNDS) | cross_field == names and not set(config.BOUNDS) & cross_field
+    first = sorted(config.BOUNDS)[0]
+    with pytest.raises(ValueError, match=f"^{name}.{first}"):
+        config(**{first: "not a value"})

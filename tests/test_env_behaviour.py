@@ -141,6 +141,22 @@ def test_onboard_view_is_read_only_and_has_no_ground_truth():
         penv.unwrapped.onboard("uav_9")
 
 
+def test_onboard_state_does_not_reach_the_other_uavs_true_states():
+    penv = parallel_env(**small_env_kwargs())
+    penv.reset(seed=0)
+    penv.step({a: np.full(3, 0.5, np.float32) for a in penv.agents})
+    env = penv.unwrapped
+    for agent in env.possible_agents:
+        view = env.onboard(agent)
+        chain, a = [], view.state                      # every array the view's state is a view of
+        while a is not None:
+            chain.append(a)
+            a = a.base
+        assert all(isinstance(a, np.ndarray) and a.size == 7 for a in chain)
+        assert not np.shares_memory(view.state, env.states)
+        assert np.array_equal(view.state, env.states[env.agent_name_mapping[agent]])
+
+
 def test_observation_slices_and_table():
     penv = parallel_env(**small_env_kwargs())
     obs, _ = penv.reset(seed=0)

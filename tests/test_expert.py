@@ -11,8 +11,9 @@ import pytest
 from gymnasium import spaces
 
 from baselines.dwa import dwa_plan
-from baselines.expert import (WEIGHT_NAMES, ExpertConfig, FusionExpert, StandardDWA, _away_vertically,
-                              _columns_without_gap, _level_way_kernel, _segment_clear)
+from baselines.expert import WEIGHT_NAMES, ExpertConfig, FusionExpert, StandardDWA
+from baselines.fusion.kernels import columns_without_gap, open_level_way, segment_clear
+from baselines.fusion.rules import away_vertically
 from uavform_env import EnvConfig, parallel_env
 from uavform_env.config import UAVLimits
 from uavform_env.occupancy import OccupancyMap
@@ -176,7 +177,7 @@ def test_climb_toward_the_target_altitude_does_not_overshoot():
     """3D VFH+'s elevation cells never give 0: at a slot 0.1 m below, the next cell up would climb at
     0.3 * tan(2.5 deg) = 0.013 m/s, at 0.5 m below a 27 deg cell at 0.15 m/s; the rate toward the target
     altitude is capped at k_z times the error, and a climb over an obstacle (away from it) is left alone."""
-    from baselines.expert import _climb_rate
+    from baselines.fusion.controller import _climb_rate
     cfg = ExpertConfig()
     lim = UAVLimits()
     e = math.radians(27.5)
@@ -193,7 +194,7 @@ def test_parked_leader_turns_until_every_slot_is_free():
     whose slots are all free and inside the bounds; it keeps that heading while it stays free."""
     from types import SimpleNamespace
 
-    from baselines.expert import _park_heading, _UAVMemory
+    from baselines.fusion.controller import _park_heading, _UAVMemory
 
     class Map:                                   # one occupied disc of radius 1 m around (-2, 2)
         resolution = 0.2
@@ -339,7 +340,7 @@ def column_blocked(occupied_z, free_z) -> bool:
     for z in free_z:
         occ.integrate((0.1, 0.1, z), [[0.7, 0.1, z]], np.array([False]))
     centres, _ = occ.occupied_in_sphere((0.3, 0.1, 6.0), 10.0)
-    columns = _columns_without_gap(occ, centres, 0.5, 10.0, 1.2)
+    columns = columns_without_gap(occ, centres, 0.5, 10.0, 1.2)
     assert len(columns) <= 1 and (len(columns) == 0 or np.allclose(columns[0], (0.5, 0.1)))
     return len(columns) == 1
 
@@ -382,7 +383,7 @@ def test_raster_columns_match_a_vectorised_reference(seed):
         occ.integrate(start, ends, rng.random(20) < 0.8)
     centres, _ = occ.occupied_in_sphere((1.2, 1.0, 4.0), 10.0)
     z_min, z_max, gap = rng.uniform(0.0, 2.0), rng.uniform(5.0, 8.5), rng.uniform(0.4, 2.5)
-    got = _columns_without_gap(occ, centres, z_min, z_max, gap)
+    got = columns_without_gap(occ, centres, z_min, z_max, gap)
     expected = columns_reference(occ, centres, z_min, z_max, gap)
     assert 0 < len(expected) < len(np.unique(np.floor(centres[:, :2] / 0.2), axis=0))   # both outcomes occur
     assert np.array_equal(got[np.lexsort(got.T[::-1])], expected)
@@ -392,22 +393,22 @@ def test_level_way_known_answers():
     cell = math.radians(5.0)
     window_open = np.zeros((36, 72), dtype=bool)
     window_open[17, 10] = True                                    # a level row, azimuth 52.5 deg
-    assert _level_way_kernel(window_open, cell, math.radians(60.0), math.radians(10.0))
-    assert not _level_way_kernel(window_open, cell, math.radians(60.0), math.radians(5.0))
+    assert open_level_way(window_open, cell, math.radians(60.0), math.radians(10.0))
+    assert not open_level_way(window_open, cell, math.radians(60.0), math.radians(5.0))
     window_open[:] = False
     window_open[18, 71] = True                                    # the other level row, 357.5 deg
-    assert _level_way_kernel(window_open, cell, 0.0, math.radians(5.0))   # across the 0/360 seam
+    assert open_level_way(window_open, cell, 0.0, math.radians(5.0))   # across the 0/360 seam
     window_open[:] = False
     window_open[16, 12] = True                                    # open, but one row below the level rows
-    assert not _level_way_kernel(window_open, cell, math.radians(62.5), math.radians(10.0))
+    assert not open_level_way(window_open, cell, math.radians(62.5), math.radians(10.0))
 
 
-def test_segment_clearance_is_the_distance_to_the_segment():
+def testsegment_clearance_is_the_distance_to_the_segment():
     centres = np.array([[1.0, 1.0, 0.0], [5.0, 0.0, 0.0]])
     a, b = np.zeros(3), np.array([2.0, 0.0, 0.0])
-    assert _segment_clear(centres, a, b, 0.99) and not _segment_clear(centres, a, b, 1.01)   # abeam: 1 m
-    assert not _segment_clear(centres, a, np.array([4.5, 0.0, 0.0]), 0.6)                   # end: 0.5 m
-    assert _segment_clear(np.empty((0, 3)), a, b, 10.0) and _segment_clear(centres, a, a, 1.4)
+    assert segment_clear(centres, a, b, 0.99) and not segment_clear(centres, a, b, 1.01)   # abeam: 1 m
+    assert not segment_clear(centres, a, np.array([4.5, 0.0, 0.0]), 0.6)                   # end: 0.5 m
+    assert segment_clear(np.empty((0, 3)), a, b, 10.0) and segment_clear(centres, a, a, 1.4)
 
 
 def test_emergency_beside_a_wall_is_left_to_dwa():
@@ -415,12 +416,12 @@ def test_emergency_beside_a_wall_is_left_to_dwa():
     occ = OccupancyMap((0.0, 0.0, 0.0), (10, 10, 30), 0.2)
     occ.integrate((1.0, 1.0, 3.0), [[1.5, 1.0, 3.1]], np.array([True]))   # a voxel 0.5 m beside the UAV
     pos = np.array([1.0, 1.0, 3.0])
-    assert _away_vertically(pos, occ, 0.4, lim, lateral_to_dwa=True) is None          # none within r_e: a neighbour's
-    assert _away_vertically(pos, occ, 0.4, lim, lateral_to_dwa=False) == 0.0
-    assert _away_vertically(pos, occ, 5.0, lim, lateral_to_dwa=True) is None
-    assert _away_vertically(pos, occ, 5.0, lim, lateral_to_dwa=False) == -lim.vz_max   # spec: away from it
+    assert away_vertically(pos, occ, 0.4, lim, lateral_to_dwa=True) is None          # none within r_e: a neighbour's
+    assert away_vertically(pos, occ, 0.4, lim, lateral_to_dwa=False) == 0.0
+    assert away_vertically(pos, occ, 5.0, lim, lateral_to_dwa=True) is None
+    assert away_vertically(pos, occ, 5.0, lim, lateral_to_dwa=False) == -lim.vz_max   # spec: away from it
     occ.integrate((1.0, 1.0, 2.9), [[1.0, 1.0, 3.3]], np.array([True]))   # nearer, and above
-    assert _away_vertically(pos, occ, 5.0, lim, lateral_to_dwa=True) == -lim.vz_max
+    assert away_vertically(pos, occ, 5.0, lim, lateral_to_dwa=True) == -lim.vz_max
 
 
 def corridor_wall():

@@ -396,3 +396,39 @@ def test_cycle_rejects_bad_input():
         step(v=-0.1)
     with pytest.raises(ValueError, match="target_dir"):
         step(target=np.zeros(3))
+
+
+# ---------------------------------------------------------------------------- per-planner setup
+def test_planner_keeps_its_setup_per_instance_across_gain_changes():
+    import baselines.vfh3d as vfh3d
+    from baselines.vfh3d import VFHPlanner
+
+    assert not hasattr(vfh3d, "_last_setup")                 # no module-global cache
+    cfg = VFHConfig()
+    planner, other = VFHPlanner(), VFHPlanner()
+    first = planner.setup(cfg, LIM, 0.2)
+    assert planner.setup(cfg, LIM, 0.2) is first
+    for k1 in (1.0, 7.5, 0.0):                               # residual weights: a new config every call
+        assert planner.setup(VFHConfig(k1=k1, k2=k1 / 2, k3=3.0), LIM, 0.2) is first
+    wider = planner.setup(VFHConfig(R_w=4.0), LIM, 0.2)      # a setup field changes: a new setup
+    assert wider is not first and wider[2].R_w == 4.0 and first[2].R_w == 5.0
+    assert planner.setup(VFHConfig(), LIM, 0.4)[2].r_e == pytest.approx(0.3 + 0.2 + 0.4)
+    assert other.setup(cfg, LIM, 0.2) is not first           # another planner holds its own
+
+
+def test_planner_matches_the_one_off_step_with_varying_gains():
+    from baselines.vfh3d import VFHPlanner
+
+    planner = VFHPlanner()
+    voxels = saturated([[2.0, 0.4, z] for z in np.arange(2.0, 4.01, 0.2)])      # a pole just left of the way
+    target = np.array([1.0, 1.7, 0.0])                                       # 60 degrees left of the heading
+    kept, fresh = VFHState(), VFHState()
+    directions = set()
+    for k1, k2 in ((5.0, 2.0), (0.5, 9.0), (9.0, 0.1), (5.0, 2.0)):
+        cfg = VFHConfig(k1=k1, k2=k2)
+        got = planner(kept, cfg, LIM, POS, 0.0, 0.0, 0.0, target, voxels[0], voxels[1], 0.2)
+        want = step(fresh, cfg, target=target, voxels=voxels)
+        assert not got.blocked and np.array_equal(got.direction, want.direction)
+        directions.add(tuple(got.direction))
+        assert np.array_equal(got.masked, want.masked) and np.array_equal(got.primary, want.primary)
+    assert len(directions) > 1                                   # the gains do steer

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from uavform_env.config import _check_int, _check_range, _Config
+from uavform_env.config import Config, check_int, check_range
 from uavform_env.scenarios import make_scenario
 
 from .residual import ResidualConfig
@@ -21,7 +21,7 @@ MINIBATCHES = 4          # batch_size 0 (the default) splits each rollout into t
 
 
 @dataclass(frozen=True)
-class TrainConfig(_Config):
+class TrainConfig(Config):
     """Everything a training run depends on; checked before any training starts.
 
     scenario, n_uavs, max_cycles   the training (and evaluation) missions
@@ -73,9 +73,9 @@ class TrainConfig(_Config):
         except ValueError as e:
             raise ValueError(f"{name}.scenario={self.scenario!r}: {e}") from None
         for field, (lo, hi) in INT_BOUNDS.items():
-            _check_int(name, field, getattr(self, field), lo, hi)
+            check_int(name, field, getattr(self, field), lo, hi)
         for field, (lo, hi, lo_open) in FLOAT_BOUNDS.items():
-            _check_range(name, field, getattr(self, field), lo, hi, lo_open=lo_open)
+            check_range(name, field, getattr(self, field), lo, hi, lo_open=lo_open)
         if not self.net_arch or not all(isinstance(n, int) and not isinstance(n, bool) and n > 0 for n in self.net_arch):
             raise ValueError(f"{name}.net_arch={self.net_arch!r}: expected a non-empty list of positive layer sizes")
         self.residual()

@@ -18,14 +18,14 @@ from pettingzoo.utils import BaseParallelWrapper
 from baselines.expert import WEIGHT_NAMES, ExpertConfig, FusionExpert
 from baselines.policy import check_flyable
 from uavform_env.actions import check_actions
-from uavform_env.config import _check_choice, _check_range, _Config
+from uavform_env.config import Config, check_choice, check_range
 
 N_WEIGHTS = len(WEIGHT_NAMES)
 REWARD_MODES = ("team", "own")
 
 
 @dataclass(frozen=True)
-class ResidualConfig(_Config):
+class ResidualConfig(Config):
     """How far the residual policy may move the expert's weights.
 
     max_factor  each weight is scaled by a factor in [1 / max_factor, max_factor]
@@ -38,8 +38,8 @@ class ResidualConfig(_Config):
     reward: str = "team"
 
     def __post_init__(self):
-        _check_range("ResidualConfig", "max_factor", self.max_factor, 1.0, 1e3, lo_open=True)
-        _check_choice("ResidualConfig", "reward", self.reward, REWARD_MODES)
+        check_range("ResidualConfig", "max_factor", self.max_factor, 1.0, 1e3, lo_open=True)
+        check_choice("ResidualConfig", "reward", self.reward, REWARD_MODES)
 
 
 class WeightAdjuster:

@@ -2,15 +2,18 @@
 
 Defaults follow Appendix A of the algorithm spec. Every dataclass checks its fields on
 construction and raises ``ValueError`` naming the field, the value and the allowed range, so a bad
-configuration fails where it is written, not deep inside a numba kernel.
+configuration fails where it is written, not deep inside a numba kernel. The checks (``check_*``)
+and the ``Config`` base with its declarative ``BOUNDS`` table are public: every package's configs
+use them.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field, fields, replace
 from types import MappingProxyType
-from typing import Any
+from typing import Any, ClassVar
 
 FORMATION_SHAPES = ("wedge", "diamond", "triangle", "line", "column")
 # Where follower slots sit in altitude: at FormationConfig.z_ref (version-1 missions) or at the leader's altitude.
@@ -18,7 +21,7 @@ SLOT_ALTITUDES = ("z_ref", "leader")
 PRIOR_MAPS = ("none", "heightmap")
 
 
-def _check_range(owner: str, name: str, value: Any, lo: float | None = None, hi: float | None = None,
+def check_range(owner: str, name: str, value: Any, lo: float | None = None, hi: float | None = None,
                  lo_open: bool = False, hi_open: bool = False) -> None:
     """Raise a ValueError naming ``owner.name`` unless ``value`` is a finite number inside the range."""
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
@@ -33,31 +36,89 @@ def _check_range(owner: str, name: str, value: Any, lo: float | None = None, hi:
         raise ValueError(f"{owner}.{name}={value!r} is out of range; allowed {left}{lo_s}, {hi_s}{right}")
 
 
-def _check_order(owner: str, lo_name: str, lo: float, hi_name: str, hi: float) -> None:
+def check_order(owner: str, lo_name: str, lo: float, hi_name: str, hi: float) -> None:
     """Raise a ValueError naming both fields unless lo < hi."""
     if not lo < hi:
         raise ValueError(f"{owner}.{lo_name}={lo!r} must be smaller than {owner}.{hi_name}={hi!r}")
 
 
-def _check_int(owner: str, name: str, value: Any, lo: int, hi: int | None = None) -> None:
+def check_int(owner: str, name: str, value: Any, lo: int, hi: int | None = None) -> None:
+    """Raise a ValueError naming ``owner.name`` unless ``value`` is an integer in [lo, hi]."""
     if isinstance(value, bool) or not isinstance(value, int):
         raise ValueError(f"{owner}.{name}={value!r}: expected an integer")
-    _check_range(owner, name, value, lo, hi)
+    check_range(owner, name, value, lo, hi)
 
 
-def _check_choice(owner: str, name: str, value: Any, choices: tuple) -> None:
+def check_choice(owner: str, name: str, value: Any, choices: tuple) -> None:
+    """Raise a ValueError naming ``owner.name`` unless ``value`` is one of ``choices``."""
     if value not in choices:
         raise ValueError(f"{owner}.{name}={value!r}: expected one of {list(choices)}")
 
 
-class _Config:
-    """Shared helpers of the config dataclasses: dict round-trip and validated copies."""
+def check_bool(owner: str, name: str, value: Any) -> None:
+    """Raise a ValueError naming ``owner.name`` unless ``value`` is a bool (not 0/1, not None)."""
+    if not isinstance(value, bool):
+        raise ValueError(f"{owner}.{name}={value!r}: expected a bool")
+
+
+def check_type(owner: str, name: str, value: Any, cls: type) -> None:
+    """Raise a ValueError naming ``owner.name`` unless ``value`` is a ``cls`` (a nested config)."""
+    if not isinstance(value, cls):
+        raise ValueError(f"{owner}.{name}: expected a {cls.__name__}")
+
+
+# Entries of a ``Config.BOUNDS`` table: each binds one check_* function to a field's allowed values.
+def in_range(lo: float | None = None, hi: float | None = None, lo_open: bool = False, hi_open: bool = False):
+    """A finite number in the range (``check_range``)."""
+    return functools.partial(check_range, lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open)
+
+
+def integer(lo: int, hi: int | None = None):
+    """An integer in [lo, hi] (``check_int``)."""
+    return functools.partial(check_int, lo=lo, hi=hi)
+
+
+def one_of(choices: tuple):
+    """One of ``choices`` (``check_choice``)."""
+    return functools.partial(check_choice, choices=choices)
+
+
+def instance_of(cls: type):
+    """A ``cls`` (``check_type``)."""
+    return functools.partial(check_type, cls=cls)
+
+
+def optional(check):
+    """None (a default derived elsewhere) or a value that passes ``check``."""
+    def check_optional(owner: str, name: str, value: Any) -> None:
+        if value is not None:
+            check(owner, name, value)
+    return check_optional
+
+
+boolean = check_bool
+
+
+class Config:
+    """Base of the config dataclasses: declared bounds, dict round-trip and validated copies.
+
+    ``BOUNDS`` maps a field name to its allowed values (``in_range``, ``integer``, ``one_of``,
+    ``boolean``, ``instance_of``, ``optional``), declared once per field; ``__post_init__`` checks them in table
+    order. A subclass with checks across fields calls ``super().__post_init__()`` first.
+    """
+
+    BOUNDS: ClassVar[dict] = {}
+
+    def __post_init__(self):
+        owner = type(self).__name__
+        for name, check in self.BOUNDS.items():
+            check(owner, name, getattr(self, name))
 
     def to_dict(self) -> dict:
         out = {}
         for f in fields(self):
             v = getattr(self, f.name)
-            out[f.name] = v.to_dict() if isinstance(v, _Config) else (list(v) if isinstance(v, tuple) else v)
+            out[f.name] = v.to_dict() if isinstance(v, Config) else (list(v) if isinstance(v, tuple) else v)
         return out
 
     @classmethod
@@ -69,7 +130,7 @@ class _Config:
         kwargs = {}
         for name, value in data.items():
             default = getattr(cls(), name) if name in known else None
-            if isinstance(default, _Config):
+            if isinstance(default, Config):
                 value = type(default).from_dict(value)
             elif isinstance(default, tuple):
                 value = tuple(value)
@@ -81,7 +142,7 @@ class _Config:
 
 
 @dataclass(frozen=True)
-class UAVLimits(_Config):
+class UAVLimits(Config):
     """Kinematic limits of one UAV (spec (a)); the planners' model uses exactly these."""
 
     dt: float = 0.1
@@ -100,21 +161,21 @@ class UAVLimits(_Config):
 
     def __post_init__(self):
         o = "UAVLimits"
-        _check_range(o, "dt", self.dt, 0.0, 1.0, lo_open=True)
-        _check_range(o, "v_min", self.v_min, 0.0, None)
-        _check_range(o, "v_max", self.v_max, 0.0, 50.0, lo_open=True)
-        _check_order(o, "v_min", self.v_min, "v_max", self.v_max)
-        _check_range(o, "w_max", self.w_max, 0.0, 2 * math.pi, lo_open=True)
-        _check_range(o, "a_max", self.a_max, 0.0, 100.0, lo_open=True)
-        _check_range(o, "dw_max", self.dw_max, 0.0, 100.0, lo_open=True)
-        _check_range(o, "vz_max", self.vz_max, 0.0, 20.0)
-        _check_range(o, "az_max", self.az_max, 0.0, 100.0)
-        _check_range(o, "gamma_max", self.gamma_max, 0.0, math.pi / 2)
-        _check_range(o, "r_uav", self.r_uav, 0.0, 10.0, lo_open=True)
-        _check_range(o, "r_safe", self.r_safe, 0.0, 10.0)
-        _check_range(o, "z_min", self.z_min, 0.0, None)
-        _check_range(o, "z_max", self.z_max, 0.0, None, lo_open=True)
-        _check_order(o, "z_min", self.z_min, "z_max", self.z_max)
+        check_range(o, "dt", self.dt, 0.0, 1.0, lo_open=True)
+        check_range(o, "v_min", self.v_min, 0.0, None)
+        check_range(o, "v_max", self.v_max, 0.0, 50.0, lo_open=True)
+        check_order(o, "v_min", self.v_min, "v_max", self.v_max)
+        check_range(o, "w_max", self.w_max, 0.0, 2 * math.pi, lo_open=True)
+        check_range(o, "a_max", self.a_max, 0.0, 100.0, lo_open=True)
+        check_range(o, "dw_max", self.dw_max, 0.0, 100.0, lo_open=True)
+        check_range(o, "vz_max", self.vz_max, 0.0, 20.0)
+        check_range(o, "az_max", self.az_max, 0.0, 100.0)
+        check_range(o, "gamma_max", self.gamma_max, 0.0, math.pi / 2)
+        check_range(o, "r_uav", self.r_uav, 0.0, 10.0, lo_open=True)
+        check_range(o, "r_safe", self.r_safe, 0.0, 10.0)
+        check_range(o, "z_min", self.z_min, 0.0, None)
+        check_range(o, "z_max", self.z_max, 0.0, None, lo_open=True)
+        check_order(o, "z_min", self.z_min, "z_max", self.z_max)
 
     def climb_angle_limit(self, v: float) -> float:
         """e_max(v) = min(gamma_max, atan2(vz_max, max(v, 1e-3))) (spec (a))."""
@@ -122,7 +183,7 @@ class UAVLimits(_Config):
 
 
 @dataclass(frozen=True)
-class SensorConfig(_Config):
+class SensorConfig(Config):
     """Simulated range sensor: an azimuth x elevation grid of rays (spec (e2), simplified sensor).
 
     ``interleave`` rotates the azimuth pattern by a fraction of one ray spacing every step (golden
@@ -141,14 +202,14 @@ class SensorConfig(_Config):
 
     def __post_init__(self):
         o = "SensorConfig"
-        _check_int(o, "n_azimuth", self.n_azimuth, 1, 3600)
-        _check_int(o, "n_elevation", self.n_elevation, 1, 1800)
-        _check_range(o, "elevation_min", self.elevation_min, -math.pi / 2, math.pi / 2)
-        _check_range(o, "elevation_max", self.elevation_max, -math.pi / 2, math.pi / 2)
+        check_int(o, "n_azimuth", self.n_azimuth, 1, 3600)
+        check_int(o, "n_elevation", self.n_elevation, 1, 1800)
+        check_range(o, "elevation_min", self.elevation_min, -math.pi / 2, math.pi / 2)
+        check_range(o, "elevation_max", self.elevation_max, -math.pi / 2, math.pi / 2)
         if self.elevation_max < self.elevation_min:
             raise ValueError(f"{o}.elevation_min={self.elevation_min!r} must not exceed "
                              f"{o}.elevation_max={self.elevation_max!r}")
-        _check_range(o, "r_max", self.r_max, 0.0, 100.0, lo_open=True)
+        check_range(o, "r_max", self.r_max, 0.0, 100.0, lo_open=True)
 
     @property
     def n_rays(self) -> int:
@@ -156,7 +217,7 @@ class SensorConfig(_Config):
 
 
 @dataclass(frozen=True)
-class MapConfig(_Config):
+class MapConfig(Config):
     """Onboard occupancy map with OctoMap's sensor model (spec (e1))."""
 
     resolution: float = 0.2
@@ -168,14 +229,14 @@ class MapConfig(_Config):
 
     def __post_init__(self):
         o = "MapConfig"
-        _check_range(o, "resolution", self.resolution, 0.01, 5.0)
-        _check_range(o, "p_hit", self.p_hit, 0.5, 1.0, lo_open=True, hi_open=True)
-        _check_range(o, "p_miss", self.p_miss, 0.0, 0.5, lo_open=True, hi_open=True)
-        _check_range(o, "p_min", self.p_min, 0.0, 0.5, lo_open=True, hi_open=True)
-        _check_range(o, "p_max", self.p_max, 0.5, 1.0, lo_open=True, hi_open=True)
-        _check_range(o, "p_occ", self.p_occ, 0.0, 1.0, lo_open=True, hi_open=True)
-        _check_order(o, "p_min", self.p_min, "p_occ", self.p_occ)
-        _check_order(o, "p_occ", self.p_occ, "p_max", self.p_max)
+        check_range(o, "resolution", self.resolution, 0.01, 5.0)
+        check_range(o, "p_hit", self.p_hit, 0.5, 1.0, lo_open=True, hi_open=True)
+        check_range(o, "p_miss", self.p_miss, 0.0, 0.5, lo_open=True, hi_open=True)
+        check_range(o, "p_min", self.p_min, 0.0, 0.5, lo_open=True, hi_open=True)
+        check_range(o, "p_max", self.p_max, 0.5, 1.0, lo_open=True, hi_open=True)
+        check_range(o, "p_occ", self.p_occ, 0.0, 1.0, lo_open=True, hi_open=True)
+        check_order(o, "p_min", self.p_min, "p_occ", self.p_occ)
+        check_order(o, "p_occ", self.p_occ, "p_max", self.p_max)
 
     @staticmethod
     def logodds(p: float) -> float:
@@ -183,7 +244,7 @@ class MapConfig(_Config):
 
 
 @dataclass(frozen=True)
-class FormationConfig(_Config):
+class FormationConfig(Config):
     """Formation geometry (spec (g1)): shape, spacing, reference altitude and closing tolerance."""
 
     shape: str = "wedge"
@@ -193,14 +254,14 @@ class FormationConfig(_Config):
 
     def __post_init__(self):
         o = "FormationConfig"
-        _check_choice(o, "shape", self.shape, FORMATION_SHAPES)
-        _check_range(o, "spacing", self.spacing, 0.0, 100.0, lo_open=True)
-        _check_range(o, "z_ref", self.z_ref, 0.0, None)
-        _check_range(o, "e_f", self.e_f, 0.0, 100.0, lo_open=True)
+        check_choice(o, "shape", self.shape, FORMATION_SHAPES)
+        check_range(o, "spacing", self.spacing, 0.0, 100.0, lo_open=True)
+        check_range(o, "z_ref", self.z_ref, 0.0, None)
+        check_range(o, "e_f", self.e_f, 0.0, 100.0, lo_open=True)
 
 
 @dataclass(frozen=True)
-class RewardConfig(_Config):
+class RewardConfig(Config):
     """Weights of the per-agent reward terms (see README, "Rewards")."""
 
     progress: float = 1.0
@@ -212,11 +273,11 @@ class RewardConfig(_Config):
 
     def __post_init__(self):
         for f in fields(self):
-            _check_range("RewardConfig", f.name, getattr(self, f.name), 0.0, None)
+            check_range("RewardConfig", f.name, getattr(self, f.name), 0.0, None)
 
 
 @dataclass(frozen=True)
-class ObservationConfig(_Config):
+class ObservationConfig(Config):
     """What each agent's observation vector contains (see README, "Observations")."""
 
     k_neighbours: int = 4
@@ -232,22 +293,22 @@ class ObservationConfig(_Config):
 
     def __post_init__(self):
         o = "ObservationConfig"
-        _check_int(o, "k_neighbours", self.k_neighbours, 0, 64)
-        _check_range(o, "neighbour_range", self.neighbour_range, 0.0, None, lo_open=True)
-        _check_range(o, "target_clip", self.target_clip, 0.0, None, lo_open=True)
-        _check_range(o, "histogram_cell_deg", self.histogram_cell_deg, 1.0, 90.0)
+        check_int(o, "k_neighbours", self.k_neighbours, 0, 64)
+        check_range(o, "neighbour_range", self.neighbour_range, 0.0, None, lo_open=True)
+        check_range(o, "target_clip", self.target_clip, 0.0, None, lo_open=True)
+        check_range(o, "histogram_cell_deg", self.histogram_cell_deg, 1.0, 90.0)
         if abs(360.0 / self.histogram_cell_deg - round(360.0 / self.histogram_cell_deg)) > 1e-9 or \
                 abs(180.0 / self.histogram_cell_deg - round(180.0 / self.histogram_cell_deg)) > 1e-9:
             raise ValueError(f"ObservationConfig.histogram_cell_deg={self.histogram_cell_deg!r}: "
                              "expected a divisor of 180 degrees (e.g. 5, 10, 15, 30)")
-        _check_range(o, "histogram_radius", self.histogram_radius, 0.0, 50.0, lo_open=True)
-        _check_int(o, "crop_level", self.crop_level, 0, 8)
-        _check_int(o, "crop_cells", self.crop_cells, 1, 64)
-        _check_int(o, "crop_cells_z", self.crop_cells_z, 1, 64)
+        check_range(o, "histogram_radius", self.histogram_radius, 0.0, 50.0, lo_open=True)
+        check_int(o, "crop_level", self.crop_level, 0, 8)
+        check_int(o, "crop_cells", self.crop_cells, 1, 64)
+        check_int(o, "crop_cells_z", self.crop_cells_z, 1, 64)
 
 
 @dataclass(frozen=True)
-class EpisodeConfig(_Config):
+class EpisodeConfig(Config):
     """Episode rules: length, goal radius, crash handling and prior knowledge."""
 
     max_cycles: int = 3000
@@ -258,16 +319,15 @@ class EpisodeConfig(_Config):
 
     def __post_init__(self):
         o = "EpisodeConfig"
-        _check_int(o, "max_cycles", self.max_cycles, 1)
-        _check_range(o, "r_goal", self.r_goal, 0.0, None, lo_open=True)
-        if not isinstance(self.remove_crashed, bool):
-            raise ValueError(f"{o}.remove_crashed={self.remove_crashed!r}: expected a bool")
-        _check_choice(o, "prior_map", self.prior_map, PRIOR_MAPS)
-        _check_range(o, "prior_resolution", self.prior_resolution, 0.05, 10.0)
+        check_int(o, "max_cycles", self.max_cycles, 1)
+        check_range(o, "r_goal", self.r_goal, 0.0, None, lo_open=True)
+        check_bool(o, "remove_crashed", self.remove_crashed)
+        check_choice(o, "prior_map", self.prior_map, PRIOR_MAPS)
+        check_range(o, "prior_resolution", self.prior_resolution, 0.05, 10.0)
 
 
 @dataclass(frozen=True)
-class DisturbanceConfig(_Config):
+class DisturbanceConfig(Config):
     """Wind on the airframe and faults of the range sensor (README, "Disturbances").
 
     Wind: Ornstein-Uhlenbeck gusts of ``wind_std`` m/s per axis (vertical scaled by 0.3) with
@@ -286,16 +346,16 @@ class DisturbanceConfig(_Config):
 
     def __post_init__(self):
         o = "DisturbanceConfig"
-        _check_range(o, "wind_std", self.wind_std, 0.0, 10.0)
-        _check_range(o, "wind_tau", self.wind_tau, 0.0, None, lo_open=True)
+        check_range(o, "wind_std", self.wind_std, 0.0, 10.0)
+        check_range(o, "wind_tau", self.wind_tau, 0.0, None, lo_open=True)
         mean = self.wind_mean
         if not isinstance(mean, (tuple, list)) or len(mean) != 2:
             raise ValueError(f"{o}.wind_mean={mean!r}: expected two numbers (x, y) in m/s")
         for axis, value in zip("xy", mean):
-            _check_range(o, f"wind_mean.{axis}", value, -10.0, 10.0)
+            check_range(o, f"wind_mean.{axis}", value, -10.0, 10.0)
         object.__setattr__(self, "wind_mean", (float(mean[0]), float(mean[1])))
-        _check_range(o, "range_noise_std", self.range_noise_std, 0.0, 10.0)
-        _check_range(o, "ray_dropout", self.ray_dropout, 0.0, 1.0, hi_open=True)
+        check_range(o, "range_noise_std", self.range_noise_std, 0.0, 10.0)
+        check_range(o, "ray_dropout", self.ray_dropout, 0.0, 1.0, hi_open=True)
 
     @property
     def windy(self) -> bool:
@@ -319,7 +379,7 @@ def disturbance_preset(name) -> DisturbanceConfig:
 
 
 @dataclass(frozen=True)
-class EnvConfig(_Config):
+class EnvConfig(Config):
     """Everything the environment needs besides the scenario."""
 
     uav: UAVLimits = field(default_factory=UAVLimits)

@@ -29,6 +29,16 @@ def wrap(a):
     return a - math.pi
 
 
+@numba.njit(cache=True)
+def wrap_all(a):
+    """``wrap`` of every angle of the array ``a`` (a new float64 array of its shape)."""
+    flat = np.ascontiguousarray(a).ravel()
+    out = np.empty(flat.size)
+    for i in range(flat.size):
+        out[i] = wrap(flat[i])
+    return out.reshape(a.shape)
+
+
 @numba.njit(cache=True, inline="always")
 def integrate(x, y, z, psi, v, w, vz, dt):
     """One 'yaw first' Euler step with the commands (v, w, vz) held constant (spec (a))."""

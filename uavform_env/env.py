@@ -411,14 +411,15 @@ class FormationEnv(ParallelEnv):
 
     def _onboard_snapshot(self) -> SimpleNamespace:
         """Read-only copies shared by every agent's view of this step, made once per step (``step`` and
-        ``reset`` replace ``self.broadcast``, which keys the snapshot)."""
+        ``reset`` replace ``self.broadcast``, which keys the snapshot). Each UAV's true state is a copy of its
+        own, so no view reaches the others' true states (through ``.base``)."""
         snap = self._snapshot
         if snap is None or snap.key is not self.broadcast:
             n = self.n_uavs
             others = np.tile(np.arange(n, dtype=np.int64), (n, 1))[~np.eye(n, dtype=bool)].reshape(n, n - 1)
             copy = _read_only_copy
             snap = SimpleNamespace(
-                key=self.broadcast, states=copy(self.states), broadcast=copy(self.broadcast),
+                key=self.broadcast, states=[copy(row) for row in self.states], broadcast=copy(self.broadcast),
                 slots=copy(self._broadcast_slots()), goal=copy(self.goal), offsets=copy(self.offsets),
                 others=copy(others), neighbour_states=copy(self.broadcast[others]),
                 neighbour_alive=copy((self.active & self.present)[others]), maps=self._map_views,

@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from .dynamics import wrap_all
 from .env import CRASH_CAUSES, END_REASONS
 
 METRIC_NAMES = (
@@ -18,10 +19,6 @@ METRIC_NAMES = (
     "min_separation", "formation_error_rms", "formation_error_max", "time_to_reform", "total_turning",
     "total_turning_mean", "direction_sign_changes", "altitude_deviation_max", "planning_ms_median", "planning_ms_p95",
 )
-
-
-def _wrap(a):
-    return (a + np.pi) % (2 * np.pi) - np.pi
 
 
 def episode_metrics(env, planning_seconds: np.ndarray | None = None, break_threshold: float = 1.0,
@@ -49,7 +46,7 @@ def episode_metrics(env, planning_seconds: np.ndarray | None = None, break_thres
 
     seg = np.linalg.norm(np.diff(pos, axis=0), axis=2)          # (T, N)
     path = seg.sum(axis=0)
-    turning = np.abs(_wrap(np.diff(yaw, axis=0))).sum(axis=0)
+    turning = np.abs(wrap_all(np.diff(yaw, axis=0))).sum(axis=0)
     if n > 1:
         d = np.linalg.norm(pos[:, :, None, :] - pos[:, None, :, :], axis=3)
         iu = np.triu_indices(n, 1)

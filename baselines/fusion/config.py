@@ -1,0 +1,200 @@
+"""``ExpertConfig``: every weight and threshold of the fusion controller, and the residual-RL weight vector."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import ClassVar
+
+import numpy as np
+
+from uavform_env.config import Config, boolean, check_range, in_range, instance_of, integer, one_of
+
+from ..astar import AStarConfig
+from ..dwa import DWAConfig
+from ..vfh3d import VFHConfig
+
+WEIGHT_NAMES = ("alpha0", "beta", "gamma", "eps0", "k1", "k2", "k3")
+ASTAR_LAYERS = ("passable", "band")
+REJOIN_MODES = ("astar", "trail")
+
+
+@dataclass(frozen=True)
+class ExpertConfig(Config):
+    """Every weight and threshold of the fusion controller (spec (g), Appendix A 'formation').
+
+    use_vfh            3D fusion (True) or the planar formation of the 2D baselines (False)
+    neighbour_prediction  neighbours move at their broadcast velocity in DWA (g6; E6 switches it off)
+    shape_switching    a follower whose slot is blocked in its own map falls back to a column slot (g7) [X]
+    astar_layer        "passable": a raster cell blocks only where no free vertical gap is left in the
+                       altitude band (the fusion controller may climb); "band": any obstacle at the
+                       formation altitude blocks (planar controllers) [X]
+    dwa_map_level      octree level whose voxels form DWA's obstacle set (0 = the 0.2 m leaves; a coarser
+                       level means fewer points but a pyramid refresh every step) [X]
+    replan_check_period  how often (s) the leader rebuilds its raster and tests the (d5) triggers [X]
+    leader_stopped_speed  below this leader speed a follower's speed reference uses its whole slot error, not
+                       the along-track part of (g2), so it closes on a parked slot from the side too, scaled
+                       by the cosine of its bearing error (0 beyond 90 degrees): a unicycle that keeps its
+                       speed while its target is abeam orbits the target instead of reaching it; its target
+                       point is then the slot itself, without the ``k_h`` lead along the leader's heading [X]
+    dock_turn_angle    a follower of a parked leader that is itself below ``leader_stopped_speed`` turns in
+                       place toward its target when that lies more than this far off its nose and at least
+                       e_f / 2 away; DWA's rotation cost and sum-normalised heading term otherwise hold it at
+                       rest there (w = 0 wins at v = 0) [X]
+    pursuit_speed_cap  cap the speed at w_max / kappa, kappa = 2 sin(theta) / d the pure-pursuit curvature onto the
+                       lookahead point (distance d, bearing theta off the nose; d / 2 beyond 90 degrees): the
+                       turn-rate limit then lets the UAV steer onto the point instead of overshooting a corner
+                       of its path (a leader passed a wall's opening 0.5 m/s too fast and followed the wall) [X]
+    final_approach_free  closing on a fixed target (the leader on its goal, a follower on a parked slot) within
+                       ``dock_radius`` along a straight segment clear by r_uav + r_safe, DWA drops its dist term
+                       (beta = 0; admissibility still holds the clearance): at rest, the centimetres of clearance
+                       a first step would cost outscored the goal terms, and a follower froze 0.5 m from its
+                       slot beside a tree [X]
+    reverse_turn_angle  a UAV steering by a path's lookahead point (the leader; a rejoining follower) turns in place
+                       when that point lies more than this far off its nose: DWA turns through a wide circle
+                       (a follower circled a whole wall's side to reach a point behind it) [X]
+    dock_radius        the leader, within this distance of the goal with the goal more than ``dock_turn_angle`` off
+                       its nose, brakes and turns in place toward it: DWA otherwise flies past a goal abeam at
+                       0.5 m and parks against whatever lies beyond (the world's bound) [X]
+    e0, e1, min_leader_scale  leader formation feedback of (g2): its speed cap scales from 1 at a mean follower
+                       error e0 down to min_leader_scale at e1 [D: the spec's 1 m, 3 m, 0.3 held a forest
+                       formation, which is always stretched, at 0.24 m/s]
+    vfh_neighbour_radius  neighbours closer than this become 3D VFH+ pseudo-voxels (g6); farther ones are
+                       left to DWA, so the formation's own members do not close the level gaps [X]
+    level_line         LEVEL also when the straight segment to the target point keeps r_uav + r_safe + a voxel's
+                       half-diagonal from every occupied voxel of the own map: 3D VFH+'s enlargement closes
+                       passages DWA flies through (a 2.5 m corridor's mouth read as blocked, and the UAV climbed
+                       the corridor wall) [X]
+    level_window       LEVEL also when an open level cell lies within this angle of the target azimuth:
+                       DWA detours horizontally rather than climbing over what it can fly around [X]
+    geofence_spacing   the world's x/y bounds enter DWA as walls of points this far apart [X]
+    rejoin_distance, rejoin  a follower farther than this from its slot rejoins along a path: ``"astar"``, an A*
+                       path to the slot on its own map (the leader's raster and (d5) triggers, plus a replan when
+                       the slot has moved ``astar.d_replan`` from the planned goal); ``"trail"``, the leader's
+                       broadcast trail (points ``trail_spacing`` apart, progress searched ``trail_window`` points
+                       ahead), in single file through clutter. A follower heading straight for a slot behind a
+                       wall slides along it (3D VFH+ offers only the ways along the face) [X]
+    rejoin_hidden      also rejoin when the straight segment to the slot passes within r_uav + a voxel's half-diagonal
+                       of an occupied voxel of the own map (the slot is behind an obstacle, however near) [X]
+    arrive_radius      the leader stops once this close to the goal (horizontally) and holds there for the rest
+                       of the mission (the DWA stopping rule of (b10)); the default DWA's approach speed
+                       profile brakes to rest 0.1 m from the goal (``dwa.r_goal``, inside ``arrive_radius``):
+                       braking to rest at 0.5 m parks the leader on the rim of the env's success sphere,
+                       never inside ``arrive_radius`` [X]
+    stuck_window       the leader also reports ``stuck`` when its horizontal goal distance has not dropped by
+                       ``trail_spacing`` for this long (s): DWA can hold it at rest with admissible samples [X]
+    gap_lookahead, gap_depth, gap_margin, k_gap  the known-gap altitude rule of the vertical decision: when
+                       no open level way lies within ``level_window`` of the target and the own map shows a
+                       blocked level within ``gap_lookahead`` m ahead, fly to the altitude of the known-free
+                       vertical run through the next ``gap_depth`` m of obstacle (3D VFH+'s 5x5 window cannot
+                       resolve gaps of about 2 m) with altitude gain ``k_gap``, at most ``gap_speed`` m/s
+                       and with leaf voxels as DWA obstacles while it passes [X]
+    climb_target_limit in CLIMB, when 3D VFH+'s elevation points toward the target altitude, the climb rate is
+                       at most ``k_z`` times the altitude error: the 5-degree elevation cells never give 0,
+                       so a follower parked at its slot (target ~1 m away) otherwise oscillates +/- 1 m
+                       around the slot altitude and never closes the formation [X]
+    lateral_emergency_to_dwa  an emergency of (g5) (a voxel or neighbour inside 3D VFH+'s r_e) whose nearest voxel
+                       lies more beside the UAV than above or below it, or which no voxel within r_e raised (a
+                       neighbour did), is left to DWA, whose admissibility keeps the clearance and the separation:
+                       the spec's stop-and-climb away never ends beside a floor-to-ceiling wall (a follower froze
+                       at a corridor's mouth), nor beside a parked leader [X]
+    park_turn          the parked leader turns in place (v = 0) to the heading nearest its own whose follower
+                       slots are all free in its own map and inside the world bounds: parked at the goal, it
+                       can otherwise leave a slot inside an obstacle, and the formation can never close [X]
+    """
+
+    dwa: DWAConfig = field(default_factory=lambda: DWAConfig.ablation("IDWA", approach_speed_profile=True,
+                                                                                      r_goal=0.1, dist_cap=0.5))
+    vfh: VFHConfig = field(default_factory=VFHConfig)
+    astar: AStarConfig = field(default_factory=lambda: AStarConfig(prune=True, heading_target="visible_goal"))
+    use_vfh: bool = True
+    neighbour_prediction: bool = True
+    shape_switching: bool = True
+    astar_layer: str = "passable"
+    dwa_map_level: int = 0
+    replan_check_period: float = 0.5
+    k_f: float = 0.5
+    leader_stopped_speed: float = 0.05
+    dock_turn_angle: float = math.radians(45.0)
+    dock_radius: float = 1.5
+    reverse_turn_angle: float = math.radians(100.0)
+    final_approach_free: bool = True
+    pursuit_speed_cap: bool = True
+    k_h: float = 1.0
+    k_z: float = 0.5
+    leader_speed_cap: float = 0.8
+    e0: float = 1.5
+    e1: float = 5.0
+    min_leader_scale: float = 0.5
+    debounce: int = 3
+    T_stuck: float = 5.0
+    climb_lookahead: float = 3.0
+    yield_factor: float = 0.5
+    column_hold: float = 3.0
+    vfh_neighbour_radius: float = 2.0
+    level_window: float = math.radians(30.0)
+    level_line: bool = True
+    geofence_spacing: float = 0.4
+    rejoin_distance: float = 4.0
+    rejoin: str = "astar"
+    rejoin_hidden: bool = True
+    trail_spacing: float = 0.25
+    trail_window: int = 400
+    arrive_radius: float = 0.3
+    stuck_window: float = 10.0
+    gap_lookahead: float = 4.0
+    gap_depth: float = 1.0
+    gap_margin: float = 0.1
+    k_gap: float = 1.0
+    gap_speed: float = 0.3
+    climb_target_limit: bool = True
+    park_turn: bool = True
+    lateral_emergency_to_dwa: bool = True
+
+    BOUNDS: ClassVar[dict] = {
+        "dwa": instance_of(DWAConfig), "vfh": instance_of(VFHConfig), "astar": instance_of(AStarConfig),
+        **{name: boolean for name in ("use_vfh", "neighbour_prediction", "shape_switching", "climb_target_limit",
+                                      "park_turn", "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap",
+                                      "rejoin_hidden", "final_approach_free")},
+        "astar_layer": one_of(ASTAR_LAYERS),
+        "rejoin": one_of(REJOIN_MODES),
+        "dwa_map_level": integer(0, 4),
+        "debounce": integer(1, 100),
+        "trail_window": integer(1),
+        **{name: in_range(0.0) for name in ("replan_check_period", "k_f", "k_h", "k_z", "T_stuck", "climb_lookahead",
+                                            "column_hold", "vfh_neighbour_radius", "rejoin_distance", "dock_radius",
+                                            "trail_spacing", "arrive_radius", "stuck_window", "gap_lookahead",
+                                            "gap_depth", "gap_margin", "k_gap", "gap_speed", "leader_stopped_speed")},
+        "leader_speed_cap": in_range(0.0, 1.0, lo_open=True),
+        "yield_factor": in_range(0.0, 1.0),
+        "min_leader_scale": in_range(0.0, 1.0),
+        "level_window": in_range(0.0, math.pi),
+        "dock_turn_angle": in_range(0.0, math.pi),
+        "reverse_turn_angle": in_range(0.0, math.pi),
+        "geofence_spacing": in_range(0.05),
+        "e0": in_range(0.0),
+    }
+
+    def __post_init__(self):
+        super().__post_init__()
+        check_range("ExpertConfig", "e1", self.e1, self.e0, None, lo_open=True)   # bounded by e0
+
+    @classmethod
+    def planar(cls, ablation: str = "IDWA", **overrides) -> "ExpertConfig":
+        """The 2D formation: fixed altitude, no 3D VFH+, the named DWA ablation, band raster for A*."""
+        return cls(dwa=DWAConfig.ablation(ablation), use_vfh=False, astar_layer="band", **overrides)
+
+    def weights(self) -> np.ndarray:
+        """The evaluation weights in ``WEIGHT_NAMES`` order (DWA alpha0, beta, gamma, eps0; VFH k1, k2, k3)."""
+        d, v = self.dwa, self.vfh
+        return np.array([d.alpha0, d.beta, d.gamma, d.eps0, v.k1, v.k2, v.k3])
+
+    def with_weights(self, w) -> "ExpertConfig":
+        w = np.asarray(w, dtype=np.float64)
+        if w.shape != (len(WEIGHT_NAMES),) or not np.all(np.isfinite(w)) or np.any(w < 0):
+            raise ValueError(f"weights: expected {len(WEIGHT_NAMES)} finite values >= 0 in the order {WEIGHT_NAMES}, "
+                             f"got {w.tolist() if w.size < 20 else w.shape}")
+        dwa = replace(self.dwa, alpha0=w[0], alpha=w[0], beta=w[1], gamma=w[2], eps0=w[3])
+        vfh = replace(self.vfh, k1=w[4], k2=w[5], k3=w[6])
+        return replace(self, dwa=dwa, vfh=vfh)
+

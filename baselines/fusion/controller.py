@@ -1,0 +1,678 @@
+"""The fusion expert of spec (g): A* + improved DWA in the plane, 3D VFH+ for the vertical, in a
+distributed leader-follower formation controller.
+
+Every UAV runs the same cycle (g3) on its own onboard view, in four stages: the target (leader: goal
+and A* lookahead; follower: the slot predicted over the DWA horizon), the vertical decision (3D VFH+
+on its own map, debounced (g4)), DWA with a 3D-aware clearance (g5) and the neighbours as moving
+obstacles (g6), then the ordered command rules of ``rules.RULES``. All weights and thresholds live in
+one ``ExpertConfig``; ``act(..., weights=...)`` overrides the evaluation weights per UAV and step (the
+residual-RL interface). The same class with ``use_vfh=False`` is the planar (2D, fixed-altitude)
+formation used by the DWA baselines. DWA and 3D VFH+ are constructor arguments (the planners of
+``baselines.dwa`` and ``baselines.vfh3d`` by default), so they can be timed or replaced.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import NamedTuple
+
+import numpy as np
+
+from uavform_env.dynamics import PSI, V, VZ, W, commands_to_actions, wrap
+from uavform_env.formation import slot_positions
+from uavform_env.world import grid_frame
+
+from ..astar import GlobalPath, Raster, inflate, plan_path, replan_trigger
+from ..dwa import dwa_plan
+from ..policy import OnboardPolicy
+from ..vfh3d import VFHPlanner, VFHState
+from .config import ExpertConfig
+from .kernels import (closest_approach, columns_without_gap, gap_altitude_kernel, in_sphere, open_level_way,
+                      segment_clear, surface_clearance)
+from .rules import RULES, Command, Cycle, bearing_error, clamp, leader_parked
+
+LEVEL, CLIMB, BLOCKED = "level", "climb", "blocked"
+
+
+@dataclass
+class _UAVMemory:
+    """What one UAV's controller remembers between cycles."""
+
+    vfh: VFHState = field(default_factory=VFHState)
+    mode: str = LEVEL
+    pending: str = LEVEL
+    pending_count: int = 0
+    stuck_time: float = 0.0
+    prev_alignment: float = 1.0
+    column_until: float = -1.0
+    path: GlobalPath | None = None
+    path_found: bool = True
+    plan_goal: np.ndarray | None = None
+    goal_visible: bool = True
+    on_path: bool = False
+    last_plan_time: float = -1e9
+    last_check_time: float = -1e9
+    replans: int = 0
+    trail: list = field(default_factory=list)
+    trail_progress: int = 0
+    arrived: bool = False
+    park_psi: float | None = None
+    best_goal_distance: float = math.inf
+    last_progress_time: float = 0.0
+
+
+class _Local(NamedTuple):
+    """The UAV's surroundings this cycle: occupied voxels within DWA's reach on the ``level`` of its own map
+    (centres, probabilities, ball radius), that reach, and the neighbours as movers (g6)."""
+
+    obstacles: np.ndarray
+    probs: np.ndarray
+    radius: float
+    reach: float
+    level: int
+    movers_pos: np.ndarray
+    movers_vel: np.ndarray
+
+
+class _Target(NamedTuple):
+    """The target stage: DWA's goal, the lookahead point (E10), the speed cap and the speed reference."""
+
+    goal: np.ndarray
+    lookahead: np.ndarray
+    v_cap: float | None
+    v_ref: float | None
+
+
+class _Vertical(NamedTuple):
+    """The vertical decision: climb rate, speed cap, DWA's heading goal and obstacle set, 3D VFH+'s result."""
+
+    vz: float
+    v_cap: float | None
+    heading_goal: np.ndarray
+    obstacles: np.ndarray
+    radius: float
+    vfh: object
+
+
+class FusionExpert(OnboardPolicy):
+    """The paper's fusion planner as a distributed formation controller (see the module docstring).
+
+    ``dwa``: the DWA planner, called like ``baselines.dwa.dwa_plan``; ``vfh``: the 3D VFH+ planner, called
+    like ``baselines.vfh3d.vfh3d_step`` (None: a ``VFHPlanner`` of this controller's own, which keeps its
+    configuration-derived setup).
+    """
+
+    def __init__(self, config: ExpertConfig | None = None, *, dwa: Callable = dwa_plan, vfh: Callable | None = None):
+        self.config = config if config is not None else ExpertConfig()
+        if not isinstance(self.config, ExpertConfig):
+            raise ValueError(f"config: expected an ExpertConfig, got {type(self.config).__name__}")
+        for name, planner in (("dwa", dwa), ("vfh", vfh)):
+            if planner is not None and not callable(planner):
+                raise ValueError(f"{name}: expected a callable planner, got {type(planner).__name__}")
+        self.dwa = dwa
+        self.vfh = vfh if vfh is not None else VFHPlanner()
+
+    def reset(self, env, seed: int | None = None) -> None:
+        super().reset(env, seed)
+        base = self.env
+        self.memory = {a: _UAVMemory() for a in base.possible_agents}
+        self._leader_prediction = (None, None)
+        lead = base.onboard(base.possible_agents[0])
+        self.raster = _raster_for(lead, self.config.astar.res_g)
+        if lead.prior.kind != "none" and self._plan(lead, self.memory[lead.agent], 0.0, lead.goal[:2]) is None:
+            raise ValueError(f"infeasible mission: the goal {lead.goal.tolist()} cannot be reached from the start "
+                             f"{lead.state[:3].tolist()} on the prior map ({lead.prior.kind}) with the "
+                             f"'{self.config.astar_layer}' raster of this controller")
+
+    def act(self, observations: dict, env, weights: dict | None = None) -> dict:
+        base = getattr(env, "unwrapped", env)
+        if getattr(self, "env", None) is not base:
+            raise ValueError("policy: act() called with an env this policy was not reset() on; call reset(env, seed)")
+        agents = list(base.agents)
+        if not agents:
+            return {}
+        commands = np.array([self._cycle(base.onboard(agent), self.config if weights is None or agent not in weights
+                                         else self.config.with_weights(weights[agent])) for agent in agents])
+        return dict(zip(agents, commands_to_actions(commands, base.config.uav)))
+
+    # ------------------------------------------------------------------ one UAV's cycle (g3)
+    def _cycle(self, view, cfg: ExpertConfig) -> np.ndarray:
+        """Target -> vertical decision -> DWA -> the command rules (``RULES``, in order)."""
+        if view.crashed:
+            return np.zeros(3)
+        mem = self.memory[view.agent]
+        t = view.step * view.limits.dt
+        z_slot = view.z_ref + view.slot_offset[2]
+        if view.is_leader and self._arrived(view, mem, cfg):
+            return self._park(view, mem, cfg, z_slot)
+        local = self._local(view, cfg)
+        target = self._target(view, mem, cfg, t, local)
+        if target is None:                                      # unreachable: hold position safely
+            self.diagnostics[view.agent] = {"mode": mem.mode, "stuck": True, "unreachable": True,
+                                            "replans": mem.replans}
+            return np.array([0.0, 0.0, self._hold_altitude(view, cfg, z_slot)])
+        vertical = self._vertical_decision(view, mem, cfg, target, local, z_slot)
+        cmd, res, clearance_now = self._dwa(view, mem, cfg, target, vertical, local)
+        cycle = Cycle(view, mem, cfg, target.goal, target.lookahead, vertical.heading_goal, res, vertical.vfh,
+                      local.movers_pos, local.movers_vel)
+        for rule in RULES:
+            rule(cmd, cycle)
+        self.diagnostics[view.agent] = {
+            "mode": mem.mode, "stuck": not res.admissible or self._no_progress(view, mem, cfg, t),
+            "n_admissible": res.n_admissible,
+            "vfh_blocked": bool(vertical.vfh.blocked) if vertical.vfh is not None else False,
+            "emergency": bool(vertical.vfh is not None and vertical.vfh.emergency),
+            "replans": mem.replans, "path_found": mem.path_found, "column": t < mem.column_until,
+            "clearance": clearance_now}
+        return cmd.array()
+
+    @staticmethod
+    def _hold_altitude(view, cfg: ExpertConfig, z_slot: float) -> float:
+        """The climb rate back to the slot altitude, gain ``k_z``."""
+        lim = view.limits
+        return clamp(cfg.k_z * (z_slot - view.state[2]), -lim.vz_max, lim.vz_max)
+
+    @staticmethod
+    def _arrived(view, mem: _UAVMemory, cfg: ExpertConfig) -> bool:
+        """Whether the leader has come within ``arrive_radius`` of the goal (horizontally), now or before."""
+        pos = view.state
+        if math.hypot(view.goal[0] - pos[0], view.goal[1] - pos[1]) < cfg.arrive_radius:
+            mem.arrived = True
+        return mem.arrived
+
+    def _park(self, view, mem: _UAVMemory, cfg: ExpertConfig, z_slot: float) -> np.ndarray:
+        """The arrived leader holds at the goal, turning in place to a heading with free slots (``park_turn``)."""
+        self.diagnostics[view.agent] = {"mode": mem.mode, "stuck": False, "arrived": True, "replans": mem.replans}
+        w_c = 0.0
+        if cfg.park_turn:
+            lim = view.limits
+            w_c = clamp(wrap(_park_heading(view, mem, cfg) - view.state[PSI]), -lim.w_max, lim.w_max)
+        return np.array([0.0, w_c, self._hold_altitude(view, cfg, z_slot)])
+
+    def _local(self, view, cfg: ExpertConfig) -> _Local:
+        """The occupied voxels within DWA's reach (octree level ``dwa_map_level``) and the neighbours (g6)."""
+        lim = view.limits
+        level = cfg.dwa_map_level
+        vox_size = view.occupancy.resolution * (2 ** level)
+        reach = lim.v_max * cfg.dwa.T_p + cfg.dwa.D_cap + lim.r_uav + vox_size
+        obstacles, probs = view.occupancy.occupied_in_sphere(view.state[:3], reach, level=level)
+        return _Local(obstacles, probs, vox_size * math.sqrt(3.0) / 2.0, reach, level, *self._neighbours(view, cfg))
+
+    # ------------------------------------------------------------------ stage 1: target
+    def _target(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float, local: _Local) -> _Target | None:
+        """Goal, lookahead and speed limits of the leader (A*) or a follower (its slot); None if unreachable."""
+        lim = view.limits
+        s = view.state
+        if view.is_leader:
+            goal, lookahead, v_cap, v_ref = self._leader_target(view, mem, cfg, t)
+            if goal is None:
+                return None
+        else:
+            slot_hidden = cfg.rejoin_hidden and not segment_clear(local.obstacles, s[:3], view.slot,
+                                                                  lim.r_uav + local.radius)
+            goal, lookahead, v_cap, v_ref = self._follower_target(view, mem, cfg, t, slot_hidden)
+        if cfg.pursuit_speed_cap:
+            v_cap = _pursuit_cap(s, lookahead, lim.w_max, lim.v_max if v_cap is None else v_cap)
+        v_cap = self._yield(view, local.movers_pos, local.movers_vel, cfg, v_cap)
+        return _Target(goal, lookahead, v_cap, v_ref)
+
+    # ------------------------------------------------------------------ stage 2: vertical decision (g4)
+    def _vertical_decision(self, view, mem: _UAVMemory, cfg: ExpertConfig, target: _Target, local: _Local,
+                           z_slot: float) -> _Vertical:
+        """Climb rate and DWA's heading goal and obstacles: 3D VFH+, the known-gap rule and the debounced mode;
+        planar mode flies level with the voxels near the flight altitude projected onto it."""
+        lim = view.limits
+        s = view.state
+        pos = s[:3]
+        vz = self._hold_altitude(view, cfg, z_slot)
+        obstacles, radius, v_cap = local.obstacles, local.radius, target.v_cap
+        if not cfg.use_vfh:
+            mem.mode = LEVEL
+            obstacles = _project_to_altitude(obstacles, pos[2], lim.r_uav + lim.r_safe + radius)
+            return _Vertical(vz, v_cap, target.goal, obstacles, radius, None)
+        heading_goal = target.goal
+        if local.level == 0 and local.reach >= cfg.vfh.R_w:   # the same voxels, in the same order, as a query
+            centres, probs = in_sphere(local.obstacles, local.probs, pos, cfg.vfh.R_w)
+        else:
+            centres, probs = view.occupancy.occupied_in_sphere(pos, cfg.vfh.R_w)
+        gap_z = _gap_altitude(view, target.lookahead, z_slot, cfg)
+        z_goal = z_slot if gap_z is None else gap_z
+        aim = np.array([target.lookahead[0], target.lookahead[1], z_goal])
+        if math.dist(aim, pos) < 1e-6:                         # on the target: 3D VFH+ looks along the heading
+            aim = pos + np.array([math.cos(s[PSI]), math.sin(s[PSI]), 0.0])
+        close = view.neighbour_alive & (np.linalg.norm(local.movers_pos - pos, axis=1) < cfg.vfh_neighbour_radius)
+        r = self.vfh(mem.vfh, cfg.vfh, lim, pos, s[PSI], s[V], s[VZ], aim - pos, centres, probs,
+                     view.occupancy.resolution, local.movers_pos[close])
+        level_way = _level_way(r, cfg, aim - pos) or (
+            cfg.level_line and segment_clear(centres, pos, aim, lim.r_uav + lim.r_safe
+                                             + view.occupancy.resolution * math.sqrt(3.0) / 2.0))
+        mode = self._debounced_mode(mem, r, cfg, level_way, gap_z is not None)
+        if mode == CLIMB and gap_z is not None:
+            vz = clamp(cfg.k_gap * (gap_z - pos[2]), -lim.vz_max, lim.vz_max)
+            v_cap = cfg.gap_speed if v_cap is None else min(v_cap, cfg.gap_speed)
+            if local.level > 0:                     # a gap leaves centimetres: use the leaf voxels
+                obstacles, _ = view.occupancy.occupied_in_sphere(pos, local.reach, level=0)
+                radius = view.occupancy.resolution * math.sqrt(3.0) / 2.0
+        elif mode == CLIMB and not r.blocked:
+            vz = _climb_rate(r.elevation, s[V], z_goal - pos[2], cfg, lim)
+        elif mode == BLOCKED:
+            vz = 0.0
+        if not r.blocked and not level_way and gap_z is None:
+            az = r.azimuth                          # follow 3D VFH+ around what DWA cannot see past
+            heading_goal = pos[:2] + cfg.climb_lookahead * np.array([math.cos(az), math.sin(az)])
+        return _Vertical(vz, v_cap, heading_goal, obstacles, radius, r)
+
+    # ------------------------------------------------------------------ stage 3: DWA
+    def _dwa(self, view, mem: _UAVMemory, cfg: ExpertConfig, target: _Target, vertical: _Vertical, local: _Local):
+        """(command, DWA result, current clearance): DWA toward the heading goal at the vertical decision's climb
+        rate, with the world's bounds as walls; if nothing is admissible while climbing, holding altitude is tried."""
+        lim = view.limits
+        s = view.state
+        pos = s[:3]
+        obstacles, radius = vertical.obstacles, vertical.radius
+        clearance_now = surface_clearance(pos, obstacles, radius, lim.r_uav)
+        dwa_cfg = cfg.dwa
+        if cfg.final_approach_free and self._final_approach(view, target.goal, obstacles, radius, cfg):
+            dwa_cfg = replace(dwa_cfg, beta=0.0)
+        fence = _geofence(pos, local.reach, view.bounds_lo, view.bounds_hi, cfg.geofence_spacing)
+        radii = np.full(len(obstacles), radius)
+        if len(fence):
+            obstacles = np.concatenate([obstacles, fence])
+            radii = np.concatenate([radii, np.zeros(len(fence))])
+        alive_pos, alive_vel = local.movers_pos[view.neighbour_alive], local.movers_vel[view.neighbour_alive]
+
+        def plan(vz):
+            return self.dwa(s, lim, dwa_cfg, vertical.heading_goal, obstacles, radii, vz_cmd=vz,
+                            lookahead=target.lookahead, clearance_now=clearance_now, movers_pos=alive_pos,
+                            movers_vel=alive_vel, v_ref=target.v_ref, v_cap=vertical.v_cap,
+                            prev_alignment=mem.prev_alignment)
+
+        vz = vertical.vz
+        res = plan(vz)
+        if not res.admissible and vz != 0.0:
+            held = plan(0.0)                     # the climb itself may be what collides: try holding altitude
+            if held.admissible:
+                res, vz = held, 0.0
+        mem.prev_alignment = res.alignment if math.isfinite(res.alignment) else 1.0
+        return Command(res.v, res.w, vz), res, clearance_now
+
+    # ------------------------------------------------------------------ helpers of the stages
+    @staticmethod
+    def _final_approach(view, goal, obstacles, radius: float, cfg: ExpertConfig) -> bool:
+        """Whether the UAV closes on a fixed target (the leader on its goal, a follower on a parked slot) within
+        ``dock_radius`` along a straight segment clear of its own map's voxels by r_uav + r_safe."""
+        pos = view.state[:3]
+        if view.is_leader:
+            target = view.goal
+        elif leader_parked(view, cfg):
+            target = np.array([goal[0], goal[1], view.z_ref + view.slot_offset[2]])
+        else:
+            return False
+        return bool(math.hypot(target[0] - pos[0], target[1] - pos[1]) < cfg.dock_radius
+                    and segment_clear(obstacles, pos, target, view.limits.r_uav + view.limits.r_safe + radius))
+
+    def _no_progress(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float) -> bool:
+        """Whether the leader has gained less than ``trail_spacing`` on the goal in the last ``stuck_window`` s."""
+        if not view.is_leader:
+            return False
+        dist = math.hypot(view.goal[0] - view.state[0], view.goal[1] - view.state[1])
+        if dist < mem.best_goal_distance - cfg.trail_spacing:
+            mem.best_goal_distance, mem.last_progress_time = dist, t
+        return t - mem.last_progress_time >= cfg.stuck_window
+
+    # ------------------------------------------------------------------ targets
+    def _leader_target(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float):
+        lim = view.limits
+        lookahead = self._guidance(view, mem, cfg, t, view.goal[:2])
+        if lookahead is None:
+            return None, None, None, None
+        mem.on_path = True
+        heading_target = cfg.astar.heading_target
+        to_lookahead = heading_target == "lookahead" or (heading_target == "visible_goal" and not mem.goal_visible)
+        goal = lookahead if to_lookahead else view.goal[:2]
+        errors = _follower_errors(view)
+        scale = 1.0
+        if errors.size:
+            mean_err = float(errors.mean())
+            scale = clamp(1.0 - (mean_err - cfg.e0) / (cfg.e1 - cfg.e0), cfg.min_leader_scale, 1.0)
+        return goal, lookahead, cfg.leader_speed_cap * lim.v_max * scale, None
+
+    def _guidance(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float, goal_xy: np.ndarray):
+        """A* lookahead point toward ``goal_xy`` on this UAV's own map, replanned on the (d5) triggers.
+
+        None when no path exists (the goal is unreachable on what this UAV knows).
+        """
+        lim = view.limits
+        pos_xy = view.state[:2]
+        if mem.replans == 0 or t - mem.last_check_time >= cfg.replan_check_period:
+            mem.last_check_time = t
+            blocked = self._blocked_raster(view, cfg)
+            if mem.replans == 0 or mem.path is None or math.dist(goal_xy, mem.plan_goal) > cfg.astar.d_replan:
+                self._plan(view, mem, t, goal_xy, blocked)
+            else:
+                inflated = inflate(blocked, lim.r_uav + lim.r_safe, self.raster.res)
+                trigger = replan_trigger(mem.path, pos_xy, inflated, self.raster, max(0.0, t - mem.last_plan_time),
+                                         True, cfg.astar)
+                if trigger is not None:
+                    self._plan(view, mem, t, goal_xy, blocked)
+                if view.is_leader and cfg.astar.heading_target == "visible_goal":
+                    box = self._raster_box()
+                    sight = GlobalPath(np.array([np.clip(pos_xy, *box), np.clip(goal_xy, *box)]))
+                    mem.goal_visible = not sight.corridor_blocked(inflated, self.raster)
+        if not mem.path_found:
+            return None
+        return mem.path.lookahead(pos_xy, cfg.astar.lookahead)
+
+    def _plan(self, view, mem: _UAVMemory, t: float, goal_xy, blocked=None):
+        cfg = self.config
+        lim = view.limits
+        if blocked is None:
+            blocked = self._blocked_raster(view, cfg)
+        path = plan_path(blocked, self.raster, np.clip(view.state[:2], *self._raster_box()),
+                         np.clip(goal_xy, *self._raster_box()), lim.r_uav + lim.r_safe, cfg.astar)
+        mem.path, mem.path_found, mem.plan_goal = path, path is not None, np.array(goal_xy, dtype=np.float64)
+        mem.last_plan_time = t
+        mem.replans += 1
+        return path
+
+    def _raster_box(self):
+        lo = np.asarray(self.raster.origin) + 1e-6
+        hi = lo + np.asarray(self.raster.shape) * self.raster.res - 2e-6
+        return lo, hi
+
+    def _blocked_raster(self, view, cfg: ExpertConfig) -> np.ndarray:
+        """A UAV's 2D raster: its map's occupied voxels, the world bounds and the prior map (``astar_layer``)."""
+        lim = view.limits
+        h_b = lim.r_uav + lim.r_safe
+        occ_map = view.occupancy
+        res = occ_map.resolution
+        extent = np.asarray(occ_map.shape) * res
+        centres, _ = occ_map.occupied_in_sphere(occ_map.origin + extent / 2, float(np.linalg.norm(extent)) / 2 + res)
+        if cfg.astar_layer == "band":
+            columns = centres[np.abs(centres[:, 2] - view.z_ref) <= h_b + res / 2, :2]
+        else:
+            columns = columns_without_gap(occ_map, centres, lim.z_min, lim.z_max, 2 * h_b + res)
+        blocked = np.zeros(self.raster.shape, bool)
+        blocked[[0, -1], :] = blocked[:, [0, -1]] = True       # the world's x/y bounds are walls (geofence)
+        _mark(blocked, self.raster, columns)
+        prior = view.prior
+        if prior.kind != "none":
+            limit = view.z_ref - h_b if cfg.astar_layer == "band" else lim.z_max - 2 * h_b
+            cells = np.argwhere(prior.heights > limit)
+            _mark(blocked, self.raster, prior.origin + (cells + 0.5) * prior.resolution)
+        return blocked
+
+    def _follower_target(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float, slot_hidden: bool):
+        lim = view.limits
+        lead = view.leader_state
+        offset = view.slot_offset
+        column = False
+        if cfg.shape_switching:
+            if view.occupancy.occupied_within(view.slot, lim.r_uav + lim.r_safe + view.occupancy.resolution):
+                mem.column_until = t + cfg.column_hold
+            column = t < mem.column_until
+        key = (lead.tobytes(), cfg.dwa.T_p)              # every follower predicts the same broadcast: once a step
+        if self._leader_prediction[0] != key:
+            pred_xy, pred_psi = _predict_unicycle(lead, cfg.dwa.T_p, lim.dt)
+            self._leader_prediction = key, (pred_xy, pred_psi, _rotated(pred_psi, view.offsets),
+                                            _rotated(lead[PSI], view.offsets))
+        pred_xy, pred_psi, turned_pred, turned_now = self._leader_prediction[1]   # every slot offset, rotated
+        if column:
+            offset = np.array([-view.index * view.config.formation.spacing, 0.0, offset[2]])
+            turned_pred, turned_now = _rotated(pred_psi, offset[None]), _rotated(lead[PSI], offset[None])
+        row = 0 if column else view.index
+        goal = pred_xy + turned_pred[row]
+        heading_l = np.array([math.cos(lead[PSI]), math.sin(lead[PSI])])
+        lead_moving = not leader_parked(view, cfg)
+        a_j = goal - view.state[:2] + (cfg.k_h * heading_l if lead_moving else 0.0)   # a parked slot is the target
+        lookahead = view.state[:2] + a_j
+        slot_now = lead[:2] + turned_now[row]
+        trail = mem.trail
+        if cfg.rejoin == "trail" and (not trail or np.hypot(*(lead[:2] - trail[-1])) >= cfg.trail_spacing):
+            trail.append(lead[:2].copy())
+        far = slot_hidden or math.hypot(slot_now[0] - view.state[0], slot_now[1] - view.state[1]) > cfg.rejoin_distance
+        mem.on_path = False
+        if far and cfg.rejoin == "astar":
+            guide = self._guidance(view, mem, cfg, t, slot_now)
+            if guide is not None:
+                mem.on_path = True
+                return guide, guide, None, None
+        elif not far:
+            mem.last_check_time = -math.inf                     # re-entering the rejoin checks the path at once
+        if far and cfg.rejoin == "trail" and len(trail) > 1:
+            # Far from the slot: rejoin along the leader's broadcast trail, which the leader has flown.
+            path = GlobalPath(np.asarray(trail), window=cfg.trail_window)
+            path.progress = min(mem.trail_progress, len(trail) - 1)
+            guide = path.lookahead(view.state[:2], cfg.astar.lookahead)
+            mem.trail_progress = path.progress
+            if path.length - path._arc[path.progress] > cfg.astar.lookahead:   # not yet at the trail's end
+                mem.on_path = True
+                return guide, guide, None, None
+        e_par = float((slot_now - view.state[:2]) @ heading_l)
+        if not lead_moving:                                     # closing on a parked slot, from any side
+            to_slot = slot_now - view.state[:2]
+            e_par = float(np.linalg.norm(to_slot)) * max(0.0, math.cos(bearing_error(view.state, to_slot)))
+        v_ref = clamp(lead[V] + cfg.k_f * e_par, 0.0, lim.v_max)
+        return goal, lookahead, None, v_ref
+
+    # ------------------------------------------------------------------ neighbours (g6)
+    def _neighbours(self, view, cfg: ExpertConfig):
+        ns = view.neighbour_states
+        vel = np.empty((len(ns), 3))
+        vel[:, 0] = ns[:, V] * np.cos(ns[:, PSI])
+        vel[:, 1] = ns[:, V] * np.sin(ns[:, PSI])
+        vel[:, 2] = ns[:, VZ]
+        pos = ns[:, :3] + vel * view.limits.dt                             # broadcasts are one cycle old
+        if not cfg.neighbour_prediction:
+            vel = np.zeros_like(vel)
+        return pos, vel
+
+    def _yield(self, view, movers_pos, movers_vel, cfg: ExpertConfig, v_cap):
+        """Deadlock rule of (g6): a UAV predicting a conflict with a lower-index UAV caps its speed."""
+        if view.is_leader or cfg.yield_factor >= 1.0:
+            return v_cap
+        lim = view.limits
+        s = view.state
+        own_vel = np.array([s[V] * math.cos(s[PSI]), s[V] * math.sin(s[PSI]), s[VZ]])
+        lower = (view.neighbour_ids < view.index) & view.neighbour_alive
+        if not lower.any():
+            return v_cap
+        n_steps = round(cfg.dwa.T_p / lim.dt)
+        if closest_approach(s[:3], own_vel, movers_pos[lower], movers_vel[lower], n_steps, lim.dt) < cfg.dwa.R_uu:
+            base = lim.v_max if v_cap is None else v_cap
+            return cfg.yield_factor * base
+        return v_cap
+
+    # ------------------------------------------------------------------ vertical decision (g4)
+    def _debounced_mode(self, mem: _UAVMemory, r, cfg: ExpertConfig, level_way: bool, gap: bool) -> str:
+        """The vertical mode of (g4), changed only after ``debounce`` consecutive cycles agree."""
+        if level_way:
+            proposal = LEVEL
+        elif gap:
+            proposal = CLIMB
+        elif r.blocked:
+            proposal = BLOCKED
+        elif abs(r.elevation) <= cfg.vfh.alpha_h / 2 + 1e-9:
+            proposal = LEVEL
+        else:
+            proposal = CLIMB
+        if proposal == mem.mode:
+            mem.pending, mem.pending_count = proposal, 0
+        elif proposal == mem.pending:
+            mem.pending_count += 1
+            if mem.pending_count >= cfg.debounce:
+                mem.mode, mem.pending_count = proposal, 0
+        else:
+            mem.pending, mem.pending_count = proposal, 1
+            if cfg.debounce <= 1:
+                mem.mode = proposal
+        return mem.mode
+
+
+# ---------------------------------------------------------------------- helpers
+def _raster_for(view, res: float) -> Raster:
+    origin, shape = grid_frame(view.bounds_lo[:2], view.bounds_hi[:2], res)
+    return Raster(tuple(origin), res, shape)
+
+
+def _mark(blocked: np.ndarray, raster: Raster, xy: np.ndarray) -> None:
+    """Block the raster cells containing the points ``xy`` (K, 2); points outside the raster are ignored."""
+    if len(xy) == 0:
+        return
+    cells = np.floor((xy - np.asarray(raster.origin)) / raster.res).astype(np.int64)
+    ok = np.all((cells >= 0) & (cells < np.asarray(raster.shape)), axis=1)
+    blocked[cells[ok, 0], cells[ok, 1]] = True
+
+
+def _level_way(r, cfg: ExpertConfig, target_dir: np.ndarray) -> bool:
+    """Whether an open cell of the two level rows lies within ``level_window`` of the target azimuth."""
+    if cfg.level_window <= 0.0:
+        return False
+    return open_level_way(r.window_open, cfg.vfh.alpha_h, math.atan2(target_dir[1], target_dir[0]), cfg.level_window)
+
+
+def _gap_altitude(view, target_xy, z_pref: float, cfg: ExpertConfig) -> float | None:
+    """The altitude to pass through a known vertical gap when the level way toward the target is blocked.
+
+    The own map's columns along the line to the target (out to ``gap_lookahead``) are tested at the
+    preferred altitude; if occupied voxels block that level, the known-free vertical runs of those
+    columns (tall enough for the UAV and its margin, inside the altitude band) are intersected and
+    the altitude nearest ``z_pref`` inside the common run is returned. Unknown voxels do not count as
+    free here: a gap has to be seen before the UAV commits to it. None: the level is clear, or no gap.
+    """
+    lim = view.limits
+    occ = view.occupancy
+    res = occ.resolution
+    pos = view.state[:3]
+    d = np.asarray(target_xy, dtype=np.float64) - pos[:2]
+    dist = math.hypot(d[0], d[1])
+    if dist < 1e-6:
+        return None
+    ts = np.arange(res, min(cfg.gap_lookahead, dist + res), res)
+    if ts.size == 0:
+        return None
+    best = gap_altitude_kernel(occ.arrays(), occ.origin, res, pos, d / dist, ts, z_pref,
+                               max(1, int(round(cfg.gap_depth / res))), lim.r_uav + lim.r_safe, lim.z_min, lim.z_max,
+                               cfg.gap_margin)
+    return None if math.isnan(best) else best
+
+
+def _geofence(pos, reach: float, lo, hi, spacing: float) -> np.ndarray:
+    """Points on the world's vertical x/y bound planes within ``reach`` of ``pos``, at its altitude."""
+    pts = []
+    for axis in (0, 1):
+        other = 1 - axis
+        for bound in (lo[axis], hi[axis]):
+            gap = abs(pos[axis] - bound)
+            if gap >= reach:
+                continue
+            half = math.sqrt(reach ** 2 - gap ** 2)
+            t = np.arange(pos[other] - half, pos[other] + half + spacing, spacing)
+            p = np.empty((t.size, 3))
+            p[:, axis] = bound
+            p[:, other] = t
+            p[:, 2] = pos[2]
+            pts.append(p)
+    return np.concatenate(pts) if pts else np.empty((0, 3))
+
+
+def _project_to_altitude(obstacles: np.ndarray, z: float, band: float) -> np.ndarray:
+    """Planar mode: keep the voxels within ``band`` of the flight altitude and put them at that altitude."""
+    keep = np.abs(obstacles[:, 2] - z) <= band
+    out = obstacles[keep].copy()
+    out[:, 2] = z
+    return out
+
+
+_ORIGIN = np.zeros(2)
+_ORIGIN.flags.writeable = False
+
+
+def _rotated(psi: float, offsets: np.ndarray) -> np.ndarray:
+    """Body-frame ``offsets`` (K, 3) turned by the heading ``psi`` into world-frame x, y (K, 2): the slots of
+    ``slot_positions`` about the origin, to which the caller adds the (predicted) leader position."""
+    return slot_positions(_ORIGIN, psi, offsets, 0.0)[:, :2]
+
+
+def _follower_errors(view) -> np.ndarray:
+    """Horizontal slot errors of the followers, from their broadcasts and the leader's own pose."""
+    s = view.state
+    slots = s[:2] + _rotated(s[PSI], view.offsets[view.neighbour_ids])
+    alive = view.neighbour_alive
+    return np.linalg.norm(view.neighbour_states[alive, :2] - slots[alive], axis=1)
+
+
+def _pursuit_cap(state, point, w_max: float, v_cap: float) -> float:
+    """``v_cap`` lowered to the speed at which the turn-rate limit still steers onto ``point`` (pure pursuit)."""
+    d = point - state[:2]
+    dist = math.hypot(d[0], d[1])
+    theta = abs(bearing_error(state, d)) if dist > 1e-9 else 0.0
+    reach = dist / 2.0 if theta >= math.pi / 2 else dist / (2.0 * math.sin(theta)) if theta > 1e-9 else math.inf
+    return min(v_cap, w_max * reach)
+
+
+def _predict_unicycle(state, horizon: float, dt: float):
+    """Pose (xy, psi) after ``horizon`` at constant (v, w) with the model of spec (a) (yaw first, closed form sum)."""
+    n = max(1, round(horizon / dt))
+    k = np.arange(1, n + 1)
+    psi = state[PSI] + k * state[W] * dt
+    x = state[0] + np.sum(state[V] * np.cos(psi) * dt)
+    y = state[1] + np.sum(state[V] * np.sin(psi) * dt)
+    return np.array([x, y]), float(psi[-1])
+
+
+def _slots_free(view, psi: float, margin: float) -> bool:
+    """Whether every follower slot of a leader at its position with heading ``psi`` is free in its own map."""
+    for slot in slot_positions(view.state[:2], psi, view.offsets[1:], view.z_ref):
+        if np.any(slot[:2] < view.bounds_lo[:2] + margin) or np.any(slot[:2] > view.bounds_hi[:2] - margin):
+            return False
+        if view.occupancy.occupied_within(slot, margin):
+            return False
+    return True
+
+
+def _park_heading(view, mem: _UAVMemory, cfg: ExpertConfig, n: int = 72) -> float:
+    """The parked leader's heading: its own unless a slot is blocked, else the nearest heading with free slots."""
+    lim = view.limits
+    margin = lim.r_uav + lim.r_safe + view.occupancy.resolution
+    if mem.park_psi is not None and _slots_free(view, mem.park_psi, margin):
+        return mem.park_psi
+    psi = float(view.state[PSI])
+    if _slots_free(view, psi, margin):
+        mem.park_psi = psi
+        return psi
+    for k in range(1, n // 2 + 1):
+        for sign in (1.0, -1.0):
+            cand = wrap(psi + sign * k * 2.0 * math.pi / n)
+            if _slots_free(view, cand, margin):
+                mem.park_psi = cand
+                return cand
+    mem.park_psi = psi                          # no heading frees every slot: stay as parked
+    return psi
+
+
+def _climb_rate(elevation: float, v: float, dz_goal: float, cfg: ExpertConfig, lim) -> float:
+    """Vertical speed of CLIMB along 3D VFH+'s elevation; with ``climb_target_limit``, when that climb heads
+    for the target altitude (error ``dz_goal``) it is at most ``k_z * |dz_goal|``, so it does not overshoot."""
+    vz = clamp(max(v, 0.3) * math.tan(elevation), -lim.vz_max, lim.vz_max)
+    if cfg.climb_target_limit and vz * dz_goal > 0.0:
+        vz = math.copysign(min(abs(vz), cfg.k_z * abs(dz_goal)), vz)
+    return vz
+
+
+class StandardDWA(FusionExpert):
+    """Planar formation with the standard DWA of spec (b): fixed altitude, no 3D VFH+."""
+
+    def __init__(self, config: ExpertConfig | None = None):
+        super().__init__(config or ExpertConfig.planar("DWA"))
+
+
+def planar_formation(ablation: str):
+    """A factory for the planar formation with one DWA ablation (``DWA+E8``, ``DWA+E8+E10``, ``IDWA``)."""
+    def make():
+        return FusionExpert(ExpertConfig.planar(ablation))
+    make.__name__ = f"planar_{ablation}"
+    return make
+

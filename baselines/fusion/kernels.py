@@ -1,0 +1,194 @@
+"""The fusion expert's numba geometry kernels on its own map's voxels and grid (serial, ``cache=True``)."""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from uavform_env.dynamics import wrap
+from uavform_env.occupancy import voxel_logodds
+
+
+def columns_without_gap(occ_map, centres: np.ndarray, z_min: float, z_max: float, gap: float) -> np.ndarray:
+    """x, y of the map columns holding an occupied voxel in [z_min, z_max] but no way through there: a run
+    of non-occupied voxels of height >= ``gap`` of which at least one voxel is known free.
+
+    A run of unknown voxels alone is not a way: a wall whose top the UAV has not seen is a wall (that
+    optimism sent followers along a corridor's wall into the world's corners); one ray through the
+    run (over a low wall, through a gap) is enough. Only the columns of the occupied voxels
+    ``centres`` are read, so the cost follows the obstacles, not the map.
+    """
+    res = occ_map.resolution
+    origin = occ_map.origin
+    k_lo = max(0, int(math.ceil((z_min - origin[2]) / res - 0.5)))
+    k_hi = min(occ_map.shape[2], int(math.floor((z_max - origin[2]) / res - 0.5)) + 1)
+    l_occ = np.float32(occ_map.cfg.logodds(occ_map.cfg.p_occ))        # the map's float32 occupancy threshold
+    out = np.empty((len(centres), 2))
+    n = _gapless_columns_kernel(occ_map.arrays(), np.ascontiguousarray(centres, dtype=np.float64), origin, res,
+                                z_min - res, z_max + res, k_lo, k_hi, l_occ, gap, out)
+    return out[:n]
+
+
+@numba.njit(cache=True)
+def _gapless_columns_kernel(leaves, centres, origin, res, z_lo, z_hi, k_lo, k_hi, l_occ, gap, out):
+    """Write into ``out`` the x, y of each column (once) of a voxel of ``centres`` within [z_lo, z_hi] whose
+    layers k_lo..k_hi-1 hold no run of non-occupied voxels >= ``gap`` with a known-free voxel; return the count."""
+    visited = np.zeros((leaves.shape[0], leaves.shape[1]), dtype=np.bool_)
+    n = 0
+    for m in range(centres.shape[0]):
+        if not z_lo <= centres[m, 2] <= z_hi:
+            continue
+        i = int(math.floor((centres[m, 0] - origin[0]) / res))
+        j = int(math.floor((centres[m, 1] - origin[1]) / res))
+        if visited[i, j]:
+            continue
+        visited[i, j] = True
+        length, seen, way = 0, False, False
+        for k in range(k_lo, k_hi):
+            value = voxel_logodds(leaves, i, j, k)
+            if value >= l_occ:                                  # NaN (unknown) compares False
+                length, seen = 0, False
+                continue
+            length += 1
+            seen = seen or value < l_occ
+            if seen and length * res >= gap - 1e-9:
+                way = True
+                break
+        if not way:
+            out[n, 0] = origin[0] + (i + 0.5) * res
+            out[n, 1] = origin[1] + (j + 0.5) * res
+            n += 1
+    return n
+
+
+@numba.njit(cache=True)
+def open_level_way(window_open, cell, target_azimuth, window):
+    """Whether an open cell of the two level rows of 3D VFH+'s open-window mask lies within ``window`` of the
+    target azimuth (cells of ``cell`` rad, column 0 at azimuth 0)."""
+    mid = window_open.shape[0] // 2
+    for col in range(window_open.shape[1]):
+        if window_open[mid - 1, col] or window_open[mid, col]:
+            if abs(wrap((col + 0.5) * cell - target_azimuth)) <= window:
+                return True
+    return False
+
+
+@numba.njit(cache=True)
+def in_sphere(points, values, centre, radius):
+    """The ``points`` (M, 3) within ``radius`` of ``centre`` and their ``values`` (M,), in their order."""
+    r2 = radius * radius
+    keep = np.empty(points.shape[0], dtype=np.int64)
+    n = 0
+    for k in range(points.shape[0]):
+        dx, dy, dz = points[k, 0] - centre[0], points[k, 1] - centre[1], points[k, 2] - centre[2]
+        if dx * dx + dy * dy + dz * dz <= r2:
+            keep[n] = k
+            n += 1
+    inside, inside_values = np.empty((n, 3)), np.empty(n)
+    for m in range(n):
+        inside[m] = points[keep[m]]
+        inside_values[m] = values[keep[m]]
+    return inside, inside_values
+
+
+@numba.njit(cache=True)
+def segment_clear(centres, a, b, clearance):
+    """Whether every voxel centre lies farther than ``clearance`` from the segment a-b (3D)."""
+    abx, aby, abz = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    ab2 = max(abx * abx + aby * aby + abz * abz, 1e-12)
+    c2 = clearance * clearance
+    for k in range(centres.shape[0]):
+        px, py, pz = centres[k, 0] - a[0], centres[k, 1] - a[1], centres[k, 2] - a[2]
+        t = min(1.0, max(0.0, (px * abx + py * aby + pz * abz) / ab2))
+        dx, dy, dz = px - t * abx, py - t * aby, pz - t * abz
+        if dx * dx + dy * dy + dz * dz <= c2:
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def gap_altitude_kernel(leaves, origin, res, pos, u, ts, z_pref, span, h_b, z_min, z_max, margin):
+    """The known-gap altitude on the leaves (a ``MapArrays``): the columns at ``pos + ts * u``, the first blocking the band around
+    ``z_pref``, and the runs known free through it and the next ``span - 1`` columns; NaN if none."""
+    nx, ny, nz = leaves.shape[0], leaves.shape[1], leaves.shape[2]
+    cols = np.empty((ts.size, 2), np.int64)
+    k_cols = 0
+    for i in range(ts.size):
+        ci = int(math.floor((pos[0] + ts[i] * u[0] - origin[0]) / res))
+        cj = int(math.floor((pos[1] + ts[i] * u[1] - origin[1]) / res))
+        if 0 <= ci < nx and 0 <= cj < ny:
+            cols[k_cols, 0], cols[k_cols, 1] = ci, cj
+            k_cols += 1
+    if k_cols == 0:
+        return math.nan
+    z = origin[2] + (np.arange(nz) + 0.5) * res
+    first = -1
+    for i in range(k_cols):
+        for k in range(nz):
+            if abs(z[k] - z_pref) <= h_b + res / 2 and voxel_logodds(leaves, cols[i, 0], cols[i, 1], k) > 0.0:
+                first = i
+                break
+        if first >= 0:
+            break
+    if first < 0:
+        return math.nan
+    free = np.empty(nz, np.bool_)
+    for k in range(nz):
+        ok = (z[k] - res / 2 >= z_min - h_b) and (z[k] + res / 2 <= z_max + h_b)
+        for i in range(first, min(first + span, k_cols)):
+            if not voxel_logodds(leaves, cols[i, 0], cols[i, 1], k) <= 0.0:  # occupied or unknown (NaN)
+                ok = False
+                break
+        free[k] = ok
+    return _nearest_free_run(free, z, res, h_b, z_min, z_max, z_pref, margin)
+
+
+@numba.njit(cache=True)
+def _nearest_free_run(free, z, res, h_b, z_min, z_max, z_pref, margin):
+    """The altitude nearest ``z_pref`` that keeps ``h_b`` (+ ``margin``) inside a run of ``free`` cells; NaN if none."""
+    best, best_cost = math.nan, math.inf
+    k = 0
+    n = free.size
+    while k < n:
+        if not free[k]:
+            k += 1
+            continue
+        j = k
+        while j < n and free[j]:
+            j += 1
+        lo, hi = z[k] - res / 2 + h_b, z[j - 1] + res / 2 - h_b   # centre range that keeps the margin
+        lo, hi = max(lo, z_min), min(hi, z_max)
+        if hi >= lo:
+            alt = min(max(z_pref, lo + margin), hi - margin) if hi - lo > 2 * margin else 0.5 * (lo + hi)
+            if abs(alt - z_pref) < best_cost:
+                best, best_cost = alt, abs(alt - z_pref)
+        k = j
+    return best
+
+
+@numba.njit(cache=True)
+def surface_clearance(pos, obstacles, radius, r_uav):
+    """Distance from ``pos`` to the nearest voxel surface (balls of ``radius``) minus r_uav; inf without voxels."""
+    if obstacles.shape[0] == 0:
+        return math.inf
+    best = math.inf
+    for k in range(obstacles.shape[0]):
+        dx, dy, dz = obstacles[k, 0] - pos[0], obstacles[k, 1] - pos[1], obstacles[k, 2] - pos[2]
+        best = min(best, dx * dx + dy * dy + dz * dz)
+    return math.sqrt(best) - radius - r_uav
+
+
+@numba.njit(cache=True)
+def closest_approach(pos, vel, movers_pos, movers_vel, n_steps, dt):
+    """The least distance to the movers over steps 1..n_steps, everyone at constant velocity."""
+    best = math.inf
+    for k in range(1, n_steps + 1):
+        t = k * dt
+        for m in range(movers_pos.shape[0]):
+            dx = (pos[0] - movers_pos[m, 0]) + t * (vel[0] - movers_vel[m, 0])
+            dy = (pos[1] - movers_pos[m, 1]) + t * (vel[1] - movers_vel[m, 1])
+            dz = (pos[2] - movers_pos[m, 2]) + t * (vel[2] - movers_vel[m, 2])
+            best = min(best, math.sqrt(dx * dx + dy * dy + dz * dz))
+    return best

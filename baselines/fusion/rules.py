@@ -1,0 +1,165 @@
+"""The fusion expert's command rules: what overrides DWA's choice, in the order ``RULES`` applies them.
+
+After DWA each UAV's command is a ``Command`` record; every rule reads the cycle's facts (``Cycle``)
+and may change the record. The order is the control law: a later rule overrides an earlier one
+(the emergency escape of (g5) has the last word). Each rule names the spec item or [X] field it
+implements; the fields are documented in ``ExpertConfig``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from uavform_env.dynamics import PSI, V, wrap
+
+from .kernels import closest_approach
+
+
+@dataclass
+class Command:
+    """One UAV's command (v, w, vz) while the rules act on it; ``turning``: a turn-in-place rule has fired."""
+
+    v: float
+    w: float
+    vz: float
+    turning: bool = False
+
+    def array(self) -> np.ndarray:
+        return np.array([self.v, self.w, self.vz])
+
+
+class Cycle(NamedTuple):
+    """What the rules read of one UAV's cycle: its view, memory and config, the target stage's goal
+    (DWA's goal) and lookahead point, the heading goal DWA steered for, DWA's and 3D VFH+'s results
+    (``vfh`` None in planar mode) and the neighbours as predicted movers (g6)."""
+
+    view: object
+    mem: object
+    cfg: object
+    goal: np.ndarray
+    lookahead: np.ndarray
+    heading_goal: np.ndarray
+    dwa: object
+    vfh: object
+    movers_pos: np.ndarray
+    movers_vel: np.ndarray
+
+
+# ---------------------------------------------------------------------- the rules, in order
+def braking_fallback(cmd: Command, c: Cycle) -> None:
+    """(b10) and the stuck escape of (g4): with no admissible DWA sample, DWA brakes and the UAV turns toward
+    its heading goal [X]; after ``T_stuck`` s of this, 3D VFH+'s straight-up (down) cells pick a vertical escape."""
+    mem, lim = c.mem, c.view.limits
+    if c.dwa.admissible:
+        mem.stuck_time = 0.0
+        return
+    mem.stuck_time += lim.dt
+    s = c.view.state
+    cmd.w = turn_toward(s, c.heading_goal - s[:2], lim.w_max)
+    if c.cfg.use_vfh and mem.stuck_time >= c.cfg.T_stuck and c.vfh is not None:
+        cmd.vz = vertical_escape(c.vfh, lim)
+
+
+def dock_turn(cmd: Command, c: Cycle) -> None:
+    """[X] ``dock_turn_angle``, ``dock_radius``: a UAV closing on a fixed target (the leader within
+    ``dock_radius`` of the goal; a slow follower of a parked leader, at least e_f / 2 from its slot) that lies
+    more than ``dock_turn_angle`` off its nose turns in place toward it."""
+    view, cfg = c.view, c.cfg
+    s = view.state
+    to_goal = (view.goal[:2] if view.is_leader else c.goal) - s[:2]
+    if view.is_leader:
+        docking = math.hypot(to_goal[0], to_goal[1]) < cfg.dock_radius
+    else:
+        docking = (leader_parked(view, cfg) and s[V] < cfg.leader_stopped_speed
+                   and math.hypot(to_goal[0], to_goal[1]) >= view.config.formation.e_f / 2)
+    if docking and abs(bearing_error(s, to_goal)) > cfg.dock_turn_angle:
+        cmd.v, cmd.w, cmd.turning = 0.0, turn_toward(s, to_goal, view.limits.w_max), True
+
+
+def reverse_turn(cmd: Command, c: Cycle) -> None:
+    """[X] ``reverse_turn_angle``: a UAV steering by a path's lookahead point (the leader; a rejoining follower)
+    turns in place when that point lies more than ``reverse_turn_angle`` off its nose (unless it docks)."""
+    s = c.view.state
+    to_lookahead = c.lookahead - s[:2]
+    if not cmd.turning and c.mem.on_path and abs(bearing_error(s, to_lookahead)) > c.cfg.reverse_turn_angle:
+        cmd.v, cmd.w, cmd.turning = 0.0, turn_toward(s, to_lookahead, c.view.limits.w_max), True
+
+
+def emergency_escape(cmd: Command, c: Cycle) -> None:
+    """(g5) emergency, with [X] ``lateral_emergency_to_dwa``: a voxel or neighbour inside 3D VFH+'s r_e stops the
+    UAV and moves it vertically away from the nearest voxel, unless that move closes on a neighbour (g6)."""
+    if c.vfh is None or not c.vfh.emergency:
+        return
+    view, cfg = c.view, c.cfg
+    lim = view.limits
+    pos = view.state[:3]
+    r_e = cfg.vfh.resolve(lim, view.occupancy.resolution)[0]
+    vz_away = away_vertically(pos, view.occupancy, r_e, lim, cfg.lateral_emergency_to_dwa)
+    if vz_away is None:
+        return
+    cmd.v, cmd.vz = 0.0, vz_away
+    alive = view.neighbour_alive
+    if closes_on_movers(pos, cmd.vz, c.movers_pos[alive], c.movers_vel[alive], cfg.dwa, lim):
+        cmd.vz = 0.0                    # the escape would fly into a neighbour (above or below)
+
+
+RULES = (braking_fallback, dock_turn, reverse_turn, emergency_escape)
+"""The rules after DWA, in the order they act on the command (later ones override earlier ones)."""
+
+
+# ---------------------------------------------------------------------- helpers (the controller uses them too)
+def clamp(x: float, lo: float, hi: float) -> float:
+    """``x`` limited to [lo, hi] (np.clip's result for one number, without its array overhead)."""
+    return float(min(max(x, lo), hi))
+
+
+def bearing_error(state, direction) -> float:
+    """Signed angle (rad) from the UAV's heading to the horizontal ``direction``."""
+    return wrap(math.atan2(direction[1], direction[0]) - state[PSI])
+
+
+def turn_toward(state, direction, w_max: float) -> float:
+    """The yaw rate toward the horizontal ``direction``: its bearing error, limited to +/- w_max."""
+    return clamp(bearing_error(state, direction), -w_max, w_max)
+
+
+def leader_parked(view, cfg) -> bool:
+    """Whether the leader's broadcast speed is below ``leader_stopped_speed`` (its followers dock)."""
+    return bool(view.leader_state[V] < cfg.leader_stopped_speed)
+
+
+def vertical_escape(r, lim) -> float:
+    """After T_stuck: climb (or descend) at full rate if the straight-up (down) cells hold no obstacle."""
+    if not r.binary[-1].any():
+        return lim.vz_max
+    if not r.binary[0].any():
+        return -lim.vz_max
+    return 0.0
+
+
+def closes_on_movers(pos, vz: float, movers_pos, movers_vel, dwa, lim) -> bool:
+    """Whether a vertical move at ``vz`` comes within ``dwa.R_uu`` of a neighbour over the DWA horizon (g6)."""
+    if len(movers_pos) == 0 or vz == 0.0:
+        return False
+    n_steps = round(dwa.T_p / lim.dt)
+    return closest_approach(pos, np.array([0.0, 0.0, vz]), movers_pos, movers_vel, n_steps, lim.dt) < dwa.R_uu
+
+
+def away_vertically(pos, occ_map, radius, lim, lateral_to_dwa: bool) -> float | None:
+    """The emergency escape of (g5): full vertical speed away from the nearest voxel within ``radius`` (r_e).
+
+    None (no escape, DWA acts) when ``lateral_to_dwa`` and that voxel lies more beside the UAV than above
+    or below it, or when no voxel is that near (a neighbour inside r_e raised the emergency: DWA's moving
+    obstacles handle it).
+    """
+    centres, _ = occ_map.occupied_in_sphere(pos, radius)
+    if len(centres) == 0:
+        return None if lateral_to_dwa else 0.0
+    nearest = centres[np.argmin(np.sum((centres - pos) ** 2, axis=1))]
+    if lateral_to_dwa and abs(nearest[2] - pos[2]) < math.hypot(*(nearest[:2] - pos[:2])):
+        return None
+    return -lim.vz_max if nearest[2] > pos[2] else lim.vz_max
