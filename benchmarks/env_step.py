@@ -67,6 +67,27 @@ def record(n: int, seed: int, steps: int, path: str) -> dict:
     return {"recorded_steps": len(actions), "expert_wall_s": time.perf_counter() - t0}
 
 
+def _timed(step, actions, budget: float) -> tuple[int, float]:
+    """Call ``step(a)`` for each batch of actions, stopping after ``budget`` seconds: (steps done, wall s)."""
+    done, t0 = 0, time.perf_counter()
+    for a in actions:
+        step(a)
+        done += 1
+        if time.perf_counter() - t0 > budget:
+            break
+    return done, time.perf_counter() - t0
+
+
+def _reset_ms(reset, seeds) -> float:
+    """Median wall time of ``reset(seed)`` over the seeds, in ms."""
+    times = []
+    for seed in seeds:
+        t0 = time.perf_counter()
+        reset(seed)
+        times.append(time.perf_counter() - t0)
+    return 1e3 * statistics.median(times)
+
+
 def ours(n: int, seed: int, steps: int, resets: int, path: str, budget: float) -> dict:
     from uavform_env import parallel_env
 
@@ -75,27 +96,21 @@ def ours(n: int, seed: int, steps: int, resets: int, path: str, budget: float) -
     penv = parallel_env(scenario=SCENARIO, n_uavs=n, max_cycles=steps + 1)
     agents = penv.possible_agents
     penv.reset(seed=seed + 10_000)                                   # warm-up (numba cache, first layout)
-    reset_times = []
-    for r in range(resets):                                          # a new seed, and so a new layout, each time
-        t0 = time.perf_counter()
-        penv.reset(seed=seed + 20_001 + r)
-        reset_times.append(time.perf_counter() - t0)
+    reset_ms = _reset_ms(lambda s: penv.reset(seed=s), range(seed + 20_001, seed + 20_001 + resets))  # new layouts
     penv = parallel_env(**_ours_kwargs(n, seed, steps))               # layout_seed: the recorded layout
     env = penv.unwrapped
     penv.reset(seed=seed)
-    alive = agent_steps = done = 0
-    t0 = time.perf_counter()
-    for a in acts:
+    counts = {"agent_steps": 0, "alive": 0}
+
+    def step(a):
         live = penv.agents
-        agent_steps += len(live)
+        counts["agent_steps"] += len(live)
         penv.step({ag: a[i] for i, ag in enumerate(agents) if ag in live})
-        alive += int(env.active.sum())
-        done += 1
-        if time.perf_counter() - t0 > budget:
-            break
-    wall = time.perf_counter() - t0
-    return {"agent_steps_per_s": agent_steps / wall, "reset_ms": 1e3 * statistics.median(reset_times),
-            "peak_rss_mb": _peak_rss_mb(), "import_rss_mb": imports, "alive": alive / (done * n), "steps": done}
+        counts["alive"] += int(env.active.sum())
+
+    done, wall = _timed(step, acts, budget)
+    return {"agent_steps_per_s": counts["agent_steps"] / wall, "reset_ms": reset_ms, "peak_rss_mb": _peak_rss_mb(),
+            "import_rss_mb": imports, "alive": counts["alive"] / (done * n), "steps": done}
 
 
 def mpe(n: int, seed: int, steps: int, resets: int, budget: float) -> dict:
@@ -104,24 +119,14 @@ def mpe(n: int, seed: int, steps: int, resets: int, budget: float) -> dict:
     imports = _peak_rss_mb()
     penv = simple_spread_v3.parallel_env(N=n, max_cycles=steps + 1, continuous_actions=True)
     penv.reset(seed=seed)
-    reset_times = []
-    for r in range(resets):
-        t0 = time.perf_counter()
-        penv.reset(seed=seed + 20_001 + r)
-        reset_times.append(time.perf_counter() - t0)
+    reset_ms = _reset_ms(lambda s: penv.reset(seed=s), range(seed + 20_001, seed + 20_001 + resets))
     penv.reset(seed=seed)
     rng = np.random.default_rng(seed)
     agents = list(penv.agents)
     dim = penv.action_space(agents[0]).shape[0]
     acts = rng.uniform(0, 1, (steps, n, dim)).astype(np.float32)     # simple_spread's continuous Box is [0, 1]
-    done, t0 = 0, time.perf_counter()
-    for a in acts:
-        penv.step({ag: a[i] for i, ag in enumerate(agents)})
-        done += 1
-        if time.perf_counter() - t0 > budget:
-            break
-    wall = time.perf_counter() - t0
-    return {"agent_steps_per_s": n * done / wall, "steps": done, "reset_ms": 1e3 * statistics.median(reset_times),
+    done, wall = _timed(lambda a: penv.step({ag: a[i] for i, ag in enumerate(agents)}), acts, budget)
+    return {"agent_steps_per_s": n * done / wall, "steps": done, "reset_ms": reset_ms,
             "peak_rss_mb": _peak_rss_mb(), "import_rss_mb": imports}
 
 
@@ -134,22 +139,16 @@ def vmas(n: int, seed: int, steps: int, resets: int, budget: float) -> dict:
     env = vmas_lib.make_env(scenario="simple_spread", num_envs=1, device="cpu", continuous_actions=True,
                             n_agents=n, seed=seed, max_steps=None)
     env.reset()
-    reset_times = []
-    for r in range(resets):
-        env.seed(seed + 20_001 + r)
-        t0 = time.perf_counter()
+
+    def reset(s):
+        env.seed(s)
         env.reset()
-        reset_times.append(time.perf_counter() - t0)
+
+    reset_ms = _reset_ms(reset, range(seed + 20_001, seed + 20_001 + resets))
     gen = torch.Generator().manual_seed(seed)
     acts = torch.rand((steps, n, 1, 2), generator=gen) * 2 - 1
-    done, t0 = 0, time.perf_counter()
-    for a in acts:
-        env.step(list(a))
-        done += 1
-        if time.perf_counter() - t0 > budget:
-            break
-    wall = time.perf_counter() - t0
-    return {"agent_steps_per_s": n * done / wall, "steps": done, "reset_ms": 1e3 * statistics.median(reset_times),
+    done, wall = _timed(lambda a: env.step(list(a)), acts, budget)
+    return {"agent_steps_per_s": n * done / wall, "steps": done, "reset_ms": reset_ms,
             "peak_rss_mb": _peak_rss_mb(), "import_rss_mb": imports}
 
 
@@ -162,20 +161,16 @@ def vector(n: int, copies: int, seed: int, steps: int, path: str, budget: float)
     kwargs = _ours_kwargs(n, seed, steps)
     venv = VectorEnv(lambda: parallel_env(**kwargs), copies)
     venv.reset(seed=seed + 10_000)              # warm-up (numba cache)
-    t0 = time.perf_counter()
-    venv.reset(seed=seed)                       # copy k: episode seed seed + k, the recorded layout
-    reset_all = time.perf_counter() - t0
-    alive = done = 0
-    t0 = time.perf_counter()
-    for a in acts:
+    reset_all = _reset_ms(lambda s: venv.reset(seed=s), [seed])   # copy k: episode seed seed + k, the recorded layout
+    counts = {"alive": 0}
+
+    def step(a):
         venv.step(np.broadcast_to(a, (copies, *a.shape)))
-        alive += sum(int(e.unwrapped.active.sum()) for e in venv.envs)
-        done += 1
-        if time.perf_counter() - t0 > budget:
-            break
-    wall = time.perf_counter() - t0
-    return {"agent_steps_per_s": copies * n * done / wall, "reset_all_ms": 1e3 * reset_all,
-            "peak_rss_mb": _peak_rss_mb(), "import_rss_mb": imports, "alive": alive / (done * n * copies),
+        counts["alive"] += sum(int(e.unwrapped.active.sum()) for e in venv.envs)
+
+    done, wall = _timed(step, acts, budget)
+    return {"agent_steps_per_s": copies * n * done / wall, "reset_all_ms": reset_all,
+            "peak_rss_mb": _peak_rss_mb(), "import_rss_mb": imports, "alive": counts["alive"] / (done * n * copies),
             "steps": done}
 
 
