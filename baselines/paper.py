@@ -166,7 +166,8 @@ class PaperPlanner(OnboardPolicy):
         heading_goal, vz_cmd, vfh_result = goal, vz_hold, None
         if cfg.use_vfh:
             centres, probs = view.occupancy.occupied_in_sphere(pos, cfg.vfh.R_w)
-            target = np.array([lookahead[0], lookahead[1], z_slot]) - pos
+            aim = lookahead if view.is_leader else goal         # (g3): T = P_LA (leader) or G_j (follower)
+            target = np.array([aim[0], aim[1], z_slot]) - pos
             if float(np.linalg.norm(target)) < 1e-6:            # on the target: look along the heading
                 target = np.array([math.cos(s[PSI]), math.sin(s[PSI]), 0.0])
             near = view.neighbour_alive & (np.linalg.norm(movers_pos - pos, axis=1) < cfg.vfh.R_w)
