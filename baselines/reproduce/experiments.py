@@ -64,6 +64,7 @@ class Setting:
     quick_cycles: int
     description: str
     env: EnvConfig = field(default_factory=EnvConfig)
+    variants: tuple[str, ...] | None = None   # the experiment's variants this world runs (None: all)
 
 
 @dataclass(frozen=True)
@@ -229,6 +230,7 @@ FUSION_VARIANTS = (
             "(the gap rule needs 3D VFH+, so it is the 2D counterpart of both expert readings)"),
 )
 
+E10_ONLY = tuple(f"{a}/{r}" for a in ("DWA+E8", "DWA+E8+E10") for r in ("endpoint", "current"))
 CLASSIC_ENV = EnvConfig(uav=UAVLimits(r_uav=CLASSIC_R_UAV, r_safe=0.0), episode=EpisodeConfig(r_goal=TIGHT_GOAL))
 TIGHT_ENV = EnvConfig(episode=EpisodeConfig(r_goal=TIGHT_GOAL))
 
@@ -244,11 +246,11 @@ EXPERIMENTS = (
     Experiment(
         "E2", "Efficiency of E10 and smoothness of E11: extended classic map, dense fields, U-traps", (
             Setting("extended", classic("extended"), 1000, 600, "the classic map plus the 8 discs of the extended set "
-                    "[R], classic mode as E1", CLASSIC_ENV),
+                    "[R], classic mode as E1", CLASSIC_ENV, E10_ONLY),
             Setting("dense", dense_field, 1000, 600, "20 x 20 m, 15-30 discs of R = 0.5 m; default UAV (r_uav 0.3 m)",
                     TIGHT_ENV),
             Setting("u-trap", u_trap, 1000, 600, "a U of full-height walls open toward the start, goal behind it; "
-                    "default UAV", TIGHT_ENV),
+                    "default UAV", TIGHT_ENV, E10_ONLY),
         ), _ablations("endpoint", ("DWA+E8", "DWA+E8+E10")) + _ablations("current", ("DWA+E8", "DWA+E8+E10"), False),
         ("dense",), ("DWA+E8/endpoint", "DWA+E8+E10/endpoint", "IDWA-abs/endpoint", "IDWA-delta/endpoint")),
     Experiment(
@@ -269,7 +271,7 @@ EXPERIMENTS = (
         ), FUSION_VARIANTS, ("wall-gap",), ("fusion/paper", "fusion/expert")),
     Experiment(
         "E6", "Five-UAV wedge at the wall gap", (
-            Setting("wall-gap", registered("wall-gap"), 2000, 300, "registered `wall-gap`: five UAVs in a 2 m wedge"),
+            Setting("wall-gap", registered("wall-gap"), 1500, 300, "registered `wall-gap`: five UAVs in a 2 m wedge"),
         ), FUSION_VARIANTS, ("wall-gap",), ("fusion/paper",)),
 )
 
@@ -307,6 +309,8 @@ def plan_runs(seeds: int | None = None, quick: bool = False) -> list[Run]:
                 continue
             n = seeds if seeds is not None else (1 if quick else SEEDS)
             for v in e.variants:
+                if s.variants is not None and v.name not in s.variants:
+                    continue
                 if quick and e.quick_variants is not None and v.name not in e.quick_variants:
                     continue
                 runs += [Run(e.id, s.name, v.name, k, s.quick_cycles if quick else s.max_cycles) for k in range(n)]

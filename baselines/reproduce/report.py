@@ -285,6 +285,8 @@ def to_markdown(summary: dict, claims: list[dict], figures: dict[str, str], reco
                          f"({s.max_cycles * s.env.uav.dt:g} s); {SEEDS} seeds; env differs from `EnvConfig()` in: "
                          + _diff(s.env, EnvConfig()))
         lines += [f"- variant `{v.name}`: {v.description}" for v in e.variants]
+        lines += [f"- setting `{s.name}` runs only: " + ", ".join(f"`{v}`" for v in s.variants)
+                  for s in e.settings if s.variants is not None]
         if e.id in summary:
             lines += ["", "**Results.**", ""] + _table(e.id, summary[e.id])
         if e.id in figures:
