@@ -72,8 +72,17 @@ def test_one_record_per_planned_run_and_horizon_check(quick):
 COMMITTED_CLAIMS = {c["id"]: c for c in json.loads(COMMITTED.read_text())} if COMMITTED.exists() else {}
 
 # (claim, reading, check index): checks whose seed-0, short-episode rerun comes out the other way from the full
-# report, with the quick result pinned.
-QUICK_DIFFERS: dict[tuple[str, str, int], bool] = {}
+# report, with the quick result pinned. On seed 0 alone: DWA and DWA+E8 (theta at the endpoint) freeze at the same
+# spot on the classic map (equal loops, so not fewer); standard DWA circles the goal beside the obstacle for 1.3
+# turns (the 20 seeds average below 1); in 600 dense-field steps no planner arrives (success ties at 0) and
+# IDWA-delta jitters slightly more than DWA+E8+E10 (0.49 vs 0.46 rad/s per m; over 20 seeds of 1000 steps, less).
+QUICK_DIFFERS: dict[tuple[str, str, int], bool] = {
+    ("C1", "endpoint", 1): False,
+    ("C3", "endpoint", 0): True,
+    ("C5", "abs", 3): True,
+    ("C5", "delta", 2): False,
+    ("C5", "delta", 3): True,
+}
 
 
 @pytest.mark.parametrize("claim", [c.id for c in CLAIMS])
