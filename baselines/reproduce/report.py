@@ -150,6 +150,7 @@ def _experiment_figure(records, exp, path: Path) -> str | None:
         if not vertical:
             series.axhline(R_SW, color="k", ls="--", lw=0.8)
             series.set_yscale("symlog", linthresh=0.1)
+            series.set_ylim(bottom=0.0)
         series.grid(True, lw=0.3)
     fig.suptitle(e.title)
     _save(fig, path)
