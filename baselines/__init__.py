@@ -1,1 +1,2 @@
-"""Scripted policies: the A* + improved DWA + 3D VFH+ fusion expert and the simpler baselines."""
+"""Scripted policies: the paper's planners bare (``paper``), the engineered A* + improved DWA + 3D VFH+ fusion
+expert (``expert``) and the simpler baselines."""

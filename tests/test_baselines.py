@@ -90,6 +90,7 @@ def test_short_names_include_every_builtin():
     ("baselines.vfh3d:VFHConfig", {"r_e", "tau_high"}),                # r_e < R_w, tau_high >= tau_low
     ("baselines.astar:AStarConfig", set()),
     ("baselines.simple:APFConfig", set()),
+    ("baselines.paper:PaperConfig", set()),
 ])
 def test_every_config_field_has_its_bounds_declared_once(cls, cross_field):
     import dataclasses

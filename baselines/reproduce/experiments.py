@@ -1,12 +1,14 @@
-"""Experiments E1-E6 of spec (h2) as data, and the function that plays one run of them.
+"""The experiments of reproduction v2 as data, and the function that plays one run of them.
 
-An experiment is a list of settings (a seed -> ``Scenario`` builder and an episode length) and a list
-of variants (a named ``ExpertConfig``); a run is one (experiment, setting, variant, seed). Every run
-is one episode of ``FusionExpert`` in ``FormationEnv``: the UAVs sense the world with their own
-range sensor and map (the paper's unknown environment), and every metric comes from
-``uavform_env.metrics.episode_metrics``. Scenarios not registered in ``uavform_env.scenarios`` are
-built here from world primitives; the registered ones are used as they are. Nothing depends on the
-seed except the scenario, so nothing is tuned per seed.
+Every experiment flies the paper's planners bare (``baselines.paper``); the fusion experiments add the
+engineered expert (``baselines.expert``) with and without its gap rule, so the report can say which
+family reproduces a claim. An experiment is a list of settings (a seed -> ``Scenario`` builder, the env
+configuration and an episode length) and a list of variants (a named policy configuration); a run is
+one (experiment, setting, variant, seed). The UAVs sense the world with their own range sensor and map
+(the paper's unknown environment). Besides ``uavform_env.metrics.episode_metrics`` each record holds
+the metrics the claims need (``paper_metrics``). After the planned runs, a sample of the runs that timed
+out is flown again at twice the horizon (``HORIZON_SAMPLE``), so the report can say whether a time-out
+means a trap. Nothing depends on the seed except the scenario, so nothing is tuned per seed.
 """
 
 from __future__ import annotations
@@ -15,51 +17,67 @@ import json
 import math
 import time
 import traceback
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from uavform_env.config import FormationConfig, MapConfig, UAVLimits
+from uavform_env.config import EnvConfig, EpisodeConfig, FormationConfig, MapConfig, UAVLimits
 from uavform_env.evaluation.runner import code_version
 from uavform_env.files import append_line, atomic_write_json, read_jsonl, set_aside_torn_line
-from uavform_env.parallel import imap_unordered
 from uavform_env.formation import slot_offsets, slot_positions
 from uavform_env.formation_v0 import parallel_env
-from uavform_env.rollout import run_episode
+from uavform_env.metrics import episode_metrics
+from uavform_env.parallel import imap_unordered
 from uavform_env.scenarios import Mission, Scenario, make_scenario
 from uavform_env.world import Box, Cylinder
 
-from ..astar import AStarConfig
 from ..dwa import DWAConfig
 from ..expert import ExpertConfig, FusionExpert
+from ..paper import PaperConfig, PaperPlanner
 
-FIGURE_SEED = 0                       # the seed whose runs keep a trace (and a picture) for the report's figures
+FORMAT = 2                            # runs.jsonl / plan.json format of this module
+FIGURE_SEED = 0                       # the seed whose runs keep a trace for the report's figures
 Z_REF = FormationConfig().z_ref       # the altitude every mission starts and ends at
 RESOLUTION = MapConfig().resolution   # the voxel size of every registered scenario
 CEILING = UAVLimits().z_max + 2.0     # world top, as in the registered scenarios: "tall" obstacles reach it
 R_DISC = 0.5                          # spec (h2) E1: disc obstacles of radius 0.5 m
+R_SW = UAVLimits().v_max * DWAConfig().T_p   # spec (c1): "near the goal" = within one horizon of travel
+SEEDS = 20                            # spec (h2): 20 seeds per world
+HORIZON_SAMPLE = 3                    # timed-out runs per setting flown again at twice the horizon (1 with --quick)
+TIGHT_GOAL = 0.1                      # m: the tight goal tolerance of C1/C3 (env success radius and DWA stop)
+CLASSIC_R_UAV = 0.05                  # m: spec (a) "classic mode" wants a point robot; the env needs r_uav > 0
+CLASSIC_RESOLUTION = 0.1              # m: map voxels of the classic mode (the discs' gaps are 0.4 m wide)
+
+# The metrics a run record adds to episode_metrics (see paper_metrics).
+METRICS = ("near_goal_loops", "near_goal_dwell", "yaw_jitter_per_metre", "iterations", "reformed")
 
 
 @dataclass(frozen=True)
 class Setting:
-    """One world of an experiment: ``build(seed)`` gives the scenario; ``max_cycles`` its episode length."""
+    """One world of an experiment: ``build(seed)`` gives the scenario, ``env`` the env configuration."""
 
     name: str
     build: Callable[[int], Scenario]
     max_cycles: int
     quick_cycles: int
     description: str
-    picture: bool = False  # seed FIGURE_SEED also writes the full trajectory picture (render.plot_episode)
-    seeds: int | None = None  # this world's seed count, when it differs from the experiment's
+    env: EnvConfig = field(default_factory=EnvConfig)
+    variants: tuple[str, ...] | None = None   # the experiment's variants this world runs (None: all)
 
 
 @dataclass(frozen=True)
 class Variant:
+    """A named policy: ``config()`` gives its PaperConfig or ExpertConfig (the policy class follows from it)."""
+
     name: str
-    config: Callable[[], ExpertConfig]
+    config: Callable[[], PaperConfig | ExpertConfig]
     description: str
+
+    def policy(self):
+        cfg = self.config()
+        return PaperPlanner(cfg) if isinstance(cfg, PaperConfig) else FusionExpert(cfg)
 
 
 @dataclass(frozen=True)
@@ -68,14 +86,14 @@ class Experiment:
     title: str
     settings: tuple[Setting, ...]
     variants: tuple[Variant, ...]
-    seeds: int          # default number of seeds (0 .. seeds-1)
-    quick_settings: tuple[str, ...]  # the settings --quick keeps (one seed, quick_cycles steps)
-    setup: str          # parameters and [X]/[D] choices, Markdown
+    quick_settings: tuple[str, ...]  # the settings --quick keeps (seed 0, quick_cycles steps)
+    quick_variants: tuple[str, ...] | None = None  # the variants --quick keeps (None: all)
 
 
-def _scenario(name, obstacles, start, goal, heading, hi, n_uavs=1, formation="column", spacing=2.0) -> Scenario:
+def _scenario(name, obstacles, start, goal, heading, hi, n_uavs=1, formation="column", spacing=2.0,
+              resolution=RESOLUTION) -> Scenario:
     return Scenario(name=name, version=1, seed=None, bounds_lo=(0.0, 0.0, 0.0), bounds_hi=(hi[0], hi[1], CEILING),
-                    resolution=RESOLUTION, obstacles=tuple(obstacles),
+                    resolution=resolution, obstacles=tuple(obstacles),
                     mission=Mission(start=(start[0], start[1], Z_REF), goal=(goal[0], goal[1], Z_REF),
                                     start_heading=heading, formation=formation, spacing=spacing, n_uavs=n_uavs))
 
@@ -84,12 +102,12 @@ def _column(x, y, r=R_DISC) -> Cylinder:
     return Cylinder(float(x), float(y), float(r), 0.0, CEILING)
 
 
-# ------------------------------------------------------------------------------------------------ E1
+# ------------------------------------------------------------------------------------------------ worlds
 def classic(difficulty: str) -> Callable[[int], Scenario]:
-    """The registered classic map; seed 0 is the spec's start (0, 0, pi/2), other seeds jitter the start
-    by up to 0.25 m and 15 degrees [D] so the mean and interval cover more than one trajectory."""
+    """The registered classic map at ``CLASSIC_RESOLUTION``; seed 0 is the spec's start (0, 0, pi/2), other seeds
+    move the start by up to 0.25 m and turn it by up to 15 degrees [D]."""
     def build(seed: int) -> Scenario:
-        scn = make_scenario("classic-2d", difficulty=difficulty)
+        scn = replace(make_scenario("classic-2d@1", difficulty=difficulty), resolution=CLASSIC_RESOLUTION)
         if seed == 0:
             return scn
         rng = np.random.default_rng([1, seed])
@@ -99,7 +117,6 @@ def classic(difficulty: str) -> Callable[[int], Scenario]:
     return build
 
 
-# ------------------------------------------------------------------------------------------------ E2
 def u_trap(seed: int) -> Scenario:
     """20 x 20 m: a U of full-height 0.4 m walls open toward the start, the goal straight behind it [D].
 
@@ -131,7 +148,6 @@ def dense_field(seed: int) -> Scenario:
                      (20.0, 20.0))
 
 
-# ------------------------------------------------------------------------------------------------ E3
 def goal_beside_obstacle(seed: int) -> Scenario:
     """The goal 3-5 m ahead of the start, a disc (R = 0.5 m) 1.0-1.4 m beside it, and the UAV starting
     with its back to the goal [D]: it has to turn round and settle next to an obstacle."""
@@ -143,166 +159,120 @@ def goal_beside_obstacle(seed: int) -> Scenario:
                      (16.0, 14.0))
 
 
-# ------------------------------------------------------------------------------------------------ E4, E5
-def block_world(n_uavs: int, formation: str) -> Callable[[int], Scenario]:
+def block_world(seed: int) -> Scenario:
     """30 x 30 x 10 m [D]: 10 tall columns (R 0.4-0.8 m) up to the world top, and 8 low boxes (1.6-3 m
     wide, tops 3.2-4 m, above z_ref = 3 m) centred within 5 m of the start-goal line; footprints keep
-    1.6 m apart and clear of every start and goal slot."""
+    1.6 m apart and clear of the start and the goal."""
+    rng = np.random.default_rng([5, seed])
+    start, goal = np.array([6.0, 15.0 + rng.uniform(-2, 2)]), np.array([26.0, 15.0 + rng.uniform(-2, 2)])
+    heading = math.atan2(*(goal - start)[::-1])
+    zones = np.vstack([slot_positions(p, heading, slot_offsets("column", 1, 2.0), Z_REF)[:, :2] for p in (start, goal)])
+    discs: list[tuple[float, float, float, bool]] = []         # x, y, footprint radius, tall
+
+    def place(count, centre_lo, centre_hi, radius_range, tall):
+        for _ in range(60 * count):
+            if sum(d[3] == tall for d in discs) == count:
+                return
+            c, r = rng.uniform(centre_lo, centre_hi), rng.uniform(*radius_range)
+            if np.min(np.linalg.norm(zones - c, axis=1)) - r < 1.5:
+                continue
+            if discs and min(math.dist(c, d[:2]) - r - d[2] for d in discs) < 1.6:
+                continue
+            discs.append((c[0], c[1], r, tall))
+
+    place(8, (start[0] + 3, 10.0), (goal[0] - 3, 20.0), (0.8, 1.5), False)
+    place(10, (1.0, 1.0), (29.0, 29.0), (0.4, 0.8), True)
+    obstacles = []
+    for x, y, r, tall in discs:
+        if tall:
+            obstacles.append(Cylinder(x, y, r, 0.0, CEILING))
+        else:
+            h = r / math.sqrt(2.0)
+            obstacles.append(Box((x - h, y - h, 0.0), (x + h, y + h, rng.uniform(3.2, 4.0))))
+    return _scenario("block-world", obstacles, start, goal, heading, (30.0, 30.0))
+
+
+def registered(name: str, **overrides) -> Callable[[int], Scenario]:
     def build(seed: int) -> Scenario:
-        rng = np.random.default_rng([5, seed])
-        start, goal = np.array([6.0, 15.0 + rng.uniform(-2, 2)]), np.array([26.0, 15.0 + rng.uniform(-2, 2)])
-        heading = math.atan2(*(goal - start)[::-1])
-        offsets = slot_offsets(formation, n_uavs, 2.0)
-        zones = np.vstack([slot_positions(p, heading, offsets, Z_REF)[:, :2] for p in (start, goal)])
-        discs: list[tuple[float, float, float, bool]] = []         # x, y, footprint radius, tall
-
-        def place(count, centre_lo, centre_hi, radius_range, tall):
-            for _ in range(60 * count):
-                if sum(d[3] == tall for d in discs) == count:
-                    return
-                c, r = rng.uniform(centre_lo, centre_hi), rng.uniform(*radius_range)
-                if np.min(np.linalg.norm(zones - c, axis=1)) - r < 1.5:
-                    continue
-                if discs and min(math.dist(c, d[:2]) - r - d[2] for d in discs) < 1.6:
-                    continue
-                discs.append((c[0], c[1], r, tall))
-
-        place(8, (start[0] + 3, 10.0), (goal[0] - 3, 20.0), (0.8, 1.5), False)
-        place(10, (1.0, 1.0), (29.0, 29.0), (0.4, 0.8), True)
-        obstacles = []
-        for x, y, r, tall in discs:
-            if tall:
-                obstacles.append(Cylinder(x, y, r, 0.0, CEILING))
-            else:
-                h = r / math.sqrt(2.0)
-                obstacles.append(Box((x - h, y - h, 0.0), (x + h, y + h, rng.uniform(3.2, 4.0))))
-        return _scenario("block-world", obstacles, start, goal, heading, (30.0, 30.0), n_uavs, formation)
-    return build
-
-
-def registered(name: str) -> Callable[[int], Scenario]:
-    def build(seed: int) -> Scenario:
-        return make_scenario(name, seed=seed)
-    return build
-
-
-# ------------------------------------------------------------------------------------------------ E6
-def turnaround(n_uavs: int, formation: str, spacing: float) -> Callable[[int], Scenario]:
-    """An open 24 x 20 m field; the formation starts facing away from a goal 8-10 m behind it (bearing
-    jittered by up to 20 degrees) [D]. The leader has to turn round past its followers, whose slots swing
-    round it and cross each other's paths: every UAV has to pass its neighbours. ``spacing`` below the
-    default 2 m makes the conflicts close."""
-    def build(seed: int) -> Scenario:
-        rng = np.random.default_rng([6, seed])
-        start = np.array([14.0, 10.0])
-        bearing = math.pi + rng.uniform(-1, 1) * math.radians(20)
-        goal = start + rng.uniform(8.0, 10.0) * np.array([math.cos(bearing), math.sin(bearing)])
-        return _scenario(f"turnaround-{formation}", [], start, goal, 0.0, (24.0, 20.0), n_uavs, formation, spacing)
+        return make_scenario(name, seed=seed, **overrides)
     return build
 
 
 # ------------------------------------------------------------------------------------------------ variants
-def planar(ablation: str) -> Variant:
-    return Variant(ablation, lambda: ExpertConfig.planar(ablation),
-                   f"`ExpertConfig.planar(\"{ablation}\")`: fixed altitude, no 3D VFH+, band raster, "
-                   f"`DWAConfig.ablation(\"{ablation}\")` with the spec's defaults")
+def _paper(ablation: str, reading: str, use_vfh: bool = False, **dwa) -> Callable[[], PaperConfig]:
+    def make() -> PaperConfig:
+        return PaperConfig.named(ablation, use_vfh=use_vfh, heading_ref=reading, **dwa)
+    return make
 
 
-DWA_ABLATIONS = tuple(planar(a) for a in ("DWA", "DWA+E8", "DWA+E8+E10", "IDWA"))
-IDWA_LOOKAHEAD = Variant("IDWA+lookahead", lambda: ExpertConfig.planar("IDWA", astar=AStarConfig(
-    prune=True, heading_target="lookahead")), "IDWA heading for the A* lookahead point instead of the goal "
-    "(`AStarConfig.heading_target=\"lookahead\"`, spec (d6)) [X: a deviation from the paper, run to show why "
-    "the paper-faithful variants stay trapped]")
-E8_PROFILE = Variant("DWA+E8+profile", lambda: replace(ExpertConfig.planar("DWA+E8"), dwa=DWAConfig.ablation(
-    "DWA+E8", approach_speed_profile=True, r_goal=0.1)), "DWA+E8 with the approach speed profile of (c1) braking "
-    "toward 0.1 m from the goal, as the fusion expert does (`DWAConfig.approach_speed_profile=True, r_goal=0.1`) "
-    "[X: off in the paper-faithful variants, run to show what the orbit comes from]")
-FUSION = Variant("fusion", ExpertConfig, "`ExpertConfig()`: the fused controller (3D VFH+ vertical decision, 3D-aware "
-                 "DWA clearance, 'passable' A* raster)")
-IDWA_2D = Variant("IDWA-2D", lambda: replace(ExpertConfig(), use_vfh=False, astar_layer="band"),
-                  "`ExpertConfig(use_vfh=False, astar_layer=\"band\")`: the same controller and DWA weights held at "
-                  "z_ref, obstacles projected to the flight band [X: the fusion's DWA settings, so only the third "
-                  "dimension differs]")
-NO_PREDICTION = Variant("no-prediction", lambda: ExpertConfig(neighbour_prediction=False),
-                        "`ExpertConfig(neighbour_prediction=False)`: neighbours enter DWA at their broadcast "
-                        "position with zero velocity (and the (g6) yield rule sees them standing)")
-PREDICTION = Variant("prediction", ExpertConfig, "`ExpertConfig()`: neighbours move at their broadcast velocity over "
-                     "the DWA horizon (g6)")
+def _ablations(reading: str, names=("DWA", "DWA+E8", "DWA+E8+E10"), idwa=True, r_goal=TIGHT_GOAL):
+    out = [Variant(f"{a}/{reading}", _paper(a, reading, r_goal=r_goal),
+                   f"`PaperConfig.named(\"{a}\", heading_ref=\"{reading}\", r_goal={r_goal})`") for a in names]
+    if idwa:
+        out += [Variant(f"IDWA-{mode}/{reading}", _paper("IDWA", reading, rotation_mode=mode, r_goal=r_goal),
+                        f"`PaperConfig.named(\"IDWA\", heading_ref=\"{reading}\", rotation_mode=\"{mode}\", "
+                        f"r_goal={r_goal})`") for mode in ("abs", "delta")]
+    return tuple(out)
 
-_PLANAR_SETUP = ("Single UAV, planar: altitude held at z_ref = 3 m, obstacles are full-height columns. "
-                 "UAV limits (Appendix A): v_max 1 m/s, w_max 20 deg/s, a_max 0.2 m/s^2, dw_max 50 deg/s^2, "
-                 "dt 0.1 s, r_uav 0.3 m, r_safe 0.2 m. DWA (b): T_p 3 s, alpha 0.1, beta 0.2, gamma 0.1, "
-                 "D_cap 2 m, sum normalisation [R]; IDWA (c): alpha0 0.1, kappa 0.2, R_sw 3 m, "
-                 "heading_ref endpoint [X], astar_weight_mode per_candidate [X], eps0 0.05, d_in 0.3 m, "
-                 "d_out 2 m, rotation_mode abs [X], rot_weight_mode proximity [X] [D]. A* (d): res_g 0.5 m, "
-                 "octile, no corner cutting, line-of-sight pruning on [X, deviation], L_a 3 m, heading_target "
-                 "goal. The map is the UAV's own OctoMap from its range sensor (unknown environment). "
-                 "Success: within r_goal = 0.5 m of the goal (env).")
+
+def _expert_2d() -> ExpertConfig:
+    return replace(ExpertConfig(), use_vfh=False, astar_layer="band")
+
+
+FUSION_VARIANTS = (
+    Variant("fusion/paper", _paper("IDWA", "endpoint", use_vfh=True), "`paper-fusion`: "
+            "`PaperConfig.named(\"IDWA\", use_vfh=True)`, the paper's fusion rule bare"),
+    Variant("2D/paper", _paper("IDWA", "endpoint"), "`paper-idwa`: `PaperConfig.named(\"IDWA\")`, held at z_ref"),
+    Variant("fusion/expert", ExpertConfig, "`expert`: `ExpertConfig()`, the engineered fusion expert"),
+    Variant("fusion/expert-no-gap", lambda: ExpertConfig(gap_lookahead=0.0),
+            "`ExpertConfig(gap_lookahead=0)`: the expert without its known-gap altitude rule"),
+    Variant("2D/expert", _expert_2d, "`ExpertConfig(use_vfh=False, astar_layer=\"band\")`: the expert held at z_ref "
+            "(the gap rule needs 3D VFH+, so it is the 2D counterpart of both expert readings)"),
+)
+
+E10_ONLY = tuple(f"{a}/{r}" for a in ("DWA+E8", "DWA+E8+E10") for r in ("endpoint", "current"))
+CLASSIC_ENV = EnvConfig(uav=UAVLimits(r_uav=CLASSIC_R_UAV, r_safe=0.0), episode=EpisodeConfig(r_goal=TIGHT_GOAL))
+TIGHT_ENV = EnvConfig(episode=EpisodeConfig(r_goal=TIGHT_GOAL))
 
 EXPERIMENTS = (
     Experiment(
-        "E1", "Classic 2D map: standard vs improved DWA and the ablation", (
-            Setting("base", classic("base"), 1500, 1500, "the classic MATLAB map, 10 discs (R = 0.5 m), start "
-                    "(0, 0, pi/2), goal (10, 10) [R]"),
-            Setting("extended", classic("extended"), 1500, 1500, "the same plus the 8 discs of the extended set [R]"),
-        ), DWA_ABLATIONS, 5, ("base",),
-        _PLANAR_SETUP + " Seeds: seed 0 is the spec's start; seeds 1-4 move the start by up to 0.25 m and turn it "
-        "by up to 15 deg [D]. Episode: 1500 steps (150 s)."),
+        "E1", "Classic map at the paper's conditions: the DWA ablation, both readings of theta", (
+            Setting("classic", classic("base"), 800, 800,
+                    "the classic MATLAB map, 10 discs (R = 0.5 m), start (0, 0, pi/2), goal (10, 10) [R]; classic "
+                    f"mode: r_uav = {CLASSIC_R_UAV} m, r_safe = 0, map voxels {CLASSIC_RESOLUTION} m; goal "
+                    f"tolerance {TIGHT_GOAL} m", CLASSIC_ENV),
+        ), _ablations("endpoint") + _ablations("current"), ("classic",),
+        ("DWA/endpoint", "DWA+E8/endpoint", "DWA/current", "DWA+E8/current")),
     Experiment(
-        "E2", "Traps: a U-trap and random dense fields", (
-            Setting("u-trap", u_trap, 600, 300, "a U of full-height walls open toward the start, goal behind it"),
-            Setting("dense", dense_field, 600, 300, "20 x 20 m, 15-30 discs of R = 0.5 m"),
-        ), DWA_ABLATIONS + (IDWA_LOOKAHEAD,), 8, ("u-trap",),
-        _PLANAR_SETUP + " 8 seeds per world (spec (h2) asks for 20; fewer to keep the default run affordable). "
-        "Episode: 600 steps (60 s; the straight line is 14-23 m). "
-        "A run that has not arrived at the end of the episode counts as trapped."),
+        "E2", "Efficiency of E10 and smoothness of E11: extended classic map, dense fields, U-traps", (
+            Setting("extended", classic("extended"), 1000, 600, "the classic map plus the 8 discs of the extended set "
+                    "[R], classic mode as E1", CLASSIC_ENV, E10_ONLY),
+            Setting("dense", dense_field, 1000, 600, "20 x 20 m, 15-30 discs of R = 0.5 m; default UAV (r_uav 0.3 m)",
+                    TIGHT_ENV),
+            Setting("u-trap", u_trap, 1000, 600, "a U of full-height walls open toward the start, goal behind it; "
+                    "default UAV", TIGHT_ENV, E10_ONLY),
+        ), _ablations("endpoint", ("DWA+E8", "DWA+E8+E10")) + _ablations("current", ("DWA+E8", "DWA+E8+E10"), False),
+        ("dense",), ("DWA+E8/endpoint", "DWA+E8+E10/endpoint", "IDWA-abs/endpoint", "IDWA-delta/endpoint")),
     Experiment(
         "E3", "Goal beside an obstacle, start facing away", (
-            Setting("beside", goal_beside_obstacle, 600, 600, "goal 3-5 m behind the UAV, a disc 1.0-1.4 m beside "
-                    "the goal"),
-        ), DWA_ABLATIONS[:2] + (E8_PROFILE,), 8, ("beside",),
-        _PLANAR_SETUP + " 8 seeds. Episode: 600 steps (60 s)."),
+            Setting("beside", goal_beside_obstacle, 600, 600, "goal 3-5 m behind the UAV, a disc 1.0-1.4 m beside the "
+                    f"goal; default UAV; goal tolerance {TIGHT_GOAL} m", TIGHT_ENV),
+        ), _ablations("endpoint", ("DWA", "DWA+E8"), False) + _ablations("current", ("DWA", "DWA+E8"), False),
+        ("beside",)),
     Experiment(
-        "E4", "Single UAV in 3D: fixed-altitude IDWA vs fusion", (
-            Setting("blocks", block_world(1, "column"), 1200, 500, "30 x 30 x 10 m, tall columns and low blocks"),
-        ), (IDWA_2D, FUSION), 6, ("blocks",),
-        "Single UAV, z_ref = 3 m, z in [0.5, 10] m. World 30 x 30 m [D]: 10 tall columns (R 0.4-0.8 m) to the world "
-        "top (12 m; the spec's 8 m columns could be flown over with z_max = 10 m, so 'tall' is made unpassable) "
-        "and 8 low boxes 1.6-3 m wide with tops 3.2-4 m (spec 2-4 m; lower tops lie under the flight band "
-        "z_ref +- 0.5 m and would not be obstacles for either controller), within 5 m of the start-goal line. "
-        "Start x = 6 m, goal x = 26 m. Fusion: ExpertConfig defaults (docs/deviations.md), incl. the DWA "
-        "approach speed profile on [X] and r_goal 0.1 m for DWA's braking [X]; 3D VFH+ (f): alpha_h 5 deg, "
-        "R_w 5 m, tau 0.3/0.9, k1..k3 = 5, 2, 2 [D], enlargement ceil_2d. 6 seeds. Episode: 1200 steps (120 s)."),
+        "E4", "Single UAV in 3D: fused against fixed-altitude planners", (
+            Setting("blocks", block_world, 1200, 500, "30 x 30 x 10 m: 10 tall columns to the world top, 8 low boxes "
+                    "(tops 3.2-4 m) near the start-goal line; goal tolerance 0.5 m (env default)"),
+        ), FUSION_VARIANTS, ("blocks",), ("fusion/paper", "2D/paper")),
     Experiment(
-        "E5", "Five-UAV wedge: planar IDWA formation vs fused formation", (
-            Setting("blocks", block_world(5, "wedge"), 1200, 300, "the E4 world with a 5-UAV wedge"),
-            Setting("corridor", registered("corridor"), 1200, 300, "registered `corridor`: a 2.5-3.5 m corridor, "
-                    "10-14 m long, narrower than the 8 m wedge"),
-            Setting("wall-gap", registered("wall-gap"), 2000, 300, "registered `wall-gap`: the only passage is "
-                    "above or below z_ref", picture=True, seeds=1),
-            Setting("urban", registered("urban"), 2000, 300, "registered `urban`: buildings, some can be flown "
-                    "over", picture=True, seeds=1),
-        ), (IDWA_2D, FUSION), 2, ("corridor",),
-        "N = 5, wedge, spacing s = 2 m, z_ref = 3 m, k_f 0.5, k_h 1, k_z 0.5, leader speed cap 0.8 v_max, "
-        "e0 1.5 m / e1 5 m / min leader scale 0.5 (spec 1 m, 3 m, 0.3; docs/deviations.md), e_f 0.5 m, "
-        "R_uu 0.8 m, debounce 3, T_stuck 5 s, shape switching on (g7). Both variants share every setting except "
-        "use_vfh and the A* raster layer. Time to re-form: from the last moment some follower was more than "
-        "1 m from its slot until all are within e_f (metrics.episode_metrics). Seeds: 2 for blocks and "
-        "corridor, 1 (seed 0, the pictures) for wall-gap and urban (cost: a 5-UAV episode takes 20-60 s on this "
-        "machine). Episodes: 1200 steps (blocks, corridor), 2000 (wall-gap, urban)."),
+        "E5", "Single UAV at a wall whose only opening is above or below z_ref", (
+            Setting("wall-gap", registered("wall-gap@1", n_uavs=1, formation="column"), 1200, 600,
+                    "registered `wall-gap@1` with one UAV"),
+        ), FUSION_VARIANTS, ("wall-gap",), ("fusion/paper", "fusion/expert")),
     Experiment(
-        "E6", "Conflicts between UAVs: with and without neighbour prediction", (
-            Setting("head-on", turnaround(3, "column", 1.2), 600, 300, "3-UAV column facing away from the goal: "
-                    "the leader has to turn round past the followers lined up behind it, toward the goal"),
-            Setting("crossing", turnaround(5, "wedge", 1.2), 600, 300, "5-UAV wedge facing away from the goal: "
-                    "while the leader turns round, the slots swing round it and the followers' paths cross"),
-        ), (PREDICTION, NO_PREDICTION), 4, ("head-on", "crossing"),
-        "Open field, no obstacles; goal 8-10 m behind the formation, bearing jittered by up to 20 deg; formation "
-        "spacing 1.2 m instead of 2 m, so turning round brings the UAVs within a few R_uu of each other [D]. "
-        "R_uu = 2 r_uav + r_safe = 0.8 m [D]; the env counts a collision below 2 r_uav = 0.6 m. The switch is "
-        "the existing `ExpertConfig.neighbour_prediction` (default True). A moving obstacle is not run: the "
-        "env's worlds are static (uavform_env.world has boxes, cylinders and spheres only), so the spec's "
-        "moving-obstacle case cannot be flown without new env code. 4 seeds. Episode: 600 steps (60 s)."),
+        "E6", "Five-UAV wedge at the wall gap", (
+            Setting("wall-gap", registered("wall-gap@1"), 1500, 300, "registered `wall-gap@1`: five UAVs in a 2 m wedge"),
+        ), FUSION_VARIANTS, ("wall-gap",), ("fusion/paper",)),
 )
 
 
@@ -320,15 +290,16 @@ class Run:
     variant: str
     seed: int
     max_cycles: int
+    horizon_check: bool = False      # a timed-out run flown again at twice its horizon
 
     @property
     def key(self) -> str:
-        return f"{self.experiment}/{self.setting}/{self.variant}/{self.seed}"
+        return f"{self.experiment}/{self.setting}/{self.variant}/{self.seed}" + ("/2H" if self.horizon_check else "")
 
 
 def plan_runs(seeds: int | None = None, quick: bool = False) -> list[Run]:
-    """Every run of E1-E6. ``quick``: the ``quick_settings`` only, seed 0, ``quick_cycles`` steps;
-    ``seeds`` overrides every experiment's seed count."""
+    """Every planned run. ``quick``: the quick settings and variants, seed 0, ``quick_cycles`` steps;
+    ``seeds`` overrides the seed count (default ``SEEDS``)."""
     if seeds is not None and (isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1):
         raise ValueError(f"seeds={seeds!r}: expected an integer >= 1")
     runs = []
@@ -336,10 +307,27 @@ def plan_runs(seeds: int | None = None, quick: bool = False) -> list[Run]:
         for s in e.settings:
             if quick and s.name not in e.quick_settings:
                 continue
-            n = seeds if seeds is not None else (1 if quick else s.seeds or e.seeds)
+            n = seeds if seeds is not None else (1 if quick else SEEDS)
             for v in e.variants:
+                if s.variants is not None and v.name not in s.variants:
+                    continue
+                if quick and e.quick_variants is not None and v.name not in e.quick_variants:
+                    continue
                 runs += [Run(e.id, s.name, v.name, k, s.quick_cycles if quick else s.max_cycles) for k in range(n)]
     return runs
+
+
+def horizon_checks(records: list[dict], quick: bool = False) -> list[Run]:
+    """Per setting, the first ``HORIZON_SAMPLE`` (1 with ``quick``) timed-out runs in key order, at twice the horizon."""
+    sample = 1 if quick else HORIZON_SAMPLE
+    picked: dict[tuple, list[Run]] = {}
+    for r in sorted(records, key=lambda r: r["key"]):
+        if r.get("horizon_check") or r["status"] != "ok" or not r["metrics"]["timeout"]:
+            continue
+        group = picked.setdefault((r["experiment"], r["setting"]), [])
+        if len(group) < sample:
+            group.append(Run(r["experiment"], r["setting"], r["variant"], r["seed"], 2 * r["max_cycles"], True))
+    return [run for group in picked.values() for run in group]
 
 
 def _parts(run: Run) -> tuple[Experiment, Setting, Variant]:
@@ -355,53 +343,67 @@ def scenario_of(run: Run) -> Scenario:
     return _parts(run)[1].build(run.seed)
 
 
-def _trace(env, stride: int) -> dict:
-    """Downsampled per-step series for the figures: time, positions, leader yaw and yaw rate, goal
-    distance, worst follower slot error and the smallest pairwise separation."""
+def paper_metrics(env) -> dict:
+    """The claims' metrics from the leader's history (spec (h1) and the issue's loops-and-dwell test).
+
+    near_goal_loops       full turns of the goal-to-UAV bearing while within R_sw of the goal: |sum of wrapped
+                          bearing steps| / 2 pi (an orbit adds up, a straight pass adds at most half a turn)
+    near_goal_dwell       seconds from the first entry within R_sw of the goal to the end of the episode
+    yaw_jitter_per_metre  sum |w_(k+1) - w_k| over the episode per metre flown (rad/s per m; spec (c4) note)
+    iterations            planning cycles to arrival (NaN if the mission did not succeed)
+    reformed              formation closed up after its last break (NaN for one UAV; see episode_metrics)
+    """
     h = env.history
-    pos = np.asarray(h["positions"])[::stride]
-    ferr = np.asarray(h["formation_error"])[::stride]
-    n = pos.shape[1]
-    if n > 1:
-        d = np.linalg.norm(pos[:, :, None] - pos[:, None], axis=3)
-        iu = np.triu_indices(n, 1)
-        sep = d[:, iu[0], iu[1]].min(axis=1)
-        worst = ferr[:, 1:].max(axis=1)
-    else:
-        sep = worst = np.full(len(pos), math.nan)
+    dt = env.config.uav.dt
+    pos = np.asarray(h["positions"])[:, 0, :2]
+    rel = pos - np.asarray(env.goal)[:2]
+    rho = np.hypot(rel[:, 0], rel[:, 1])
+    bearing = np.arctan2(rel[:, 1], rel[:, 0])
+    near = (rho[1:] < R_SW) & (rho[:-1] < R_SW)
+    steps = np.angle(np.exp(1j * np.diff(bearing)))
+    loops = abs(float(steps[near].sum())) / (2 * math.pi)
+    inside = np.flatnonzero(rho < R_SW)
+    dwell = (len(rho) - 1 - inside[0]) * dt if inside.size else 0.0
+    w = np.asarray(h["w"])[:, 0]
+    length = float(np.linalg.norm(np.diff(pos, axis=0), axis=1).sum())
+    jitter = float(np.abs(np.diff(w)).sum()) / length if length > 0.5 else math.nan
+    return {"near_goal_loops": loops, "near_goal_dwell": float(dwell), "yaw_jitter_per_metre": jitter,
+            "iterations": float(env.step_count) if env.success else math.nan}
+
+
+def _trace(env, stride: int) -> dict:
+    """Downsampled per-step series for the figures: time, leader position and yaw rate, goal distance."""
+    h = env.history
+    pos = np.asarray(h["positions"])[::stride, 0]
     return {"t": np.round(np.arange(len(pos)) * stride * env.config.uav.dt, 2).tolist(),
             "pos": np.round(pos, 3).tolist(),
-            "yaw": np.round(np.asarray(h["yaw"])[::stride, 0], 4).tolist(),
             "w": np.round(np.asarray(h["w"])[::stride, 0], 4).tolist(),
-            "goal_distance": np.round(np.linalg.norm(pos[:, 0, :2] - np.asarray(env.goal)[:2], axis=1), 3).tolist(),
-            "formation_error_max": np.round(worst, 3).tolist(),
-            "separation_min": np.round(sep, 3).tolist()}
+            "goal_distance": np.round(np.linalg.norm(pos[:, :2] - np.asarray(env.goal)[:2], axis=1), 3).tolist()}
 
 
-def play(run: Run, picture_dir: str | None = None) -> dict:
+def play(run: Run) -> dict:
     """Play one run and return its record (never raises: an exception becomes a ``failed`` record).
 
-    Runs of ``FIGURE_SEED`` keep a trace; with ``picture_dir`` a picture setting also writes its
-    trajectory picture there. A top-level function of plain data, so a process pool can ship it.
+    Runs of ``FIGURE_SEED`` keep a trace. A top-level function of plain data, so a process pool can ship it.
     """
-    from uavform_env.render import plot_episode
-
     record = {"key": run.key, "experiment": run.experiment, "setting": run.setting, "variant": run.variant,
-              "seed": run.seed, "max_cycles": run.max_cycles}
+              "seed": run.seed, "max_cycles": run.max_cycles, "horizon_check": run.horizon_check}
     start = time.perf_counter()
     try:
         _, setting, variant = _parts(run)
-        penv = parallel_env(scenario=setting.build(run.seed), max_cycles=run.max_cycles)
-        metrics = run_episode(penv, FusionExpert(variant.config()), run.seed)
+        penv = parallel_env(scenario=setting.build(run.seed), max_cycles=run.max_cycles, config=setting.env)
+        policy = variant.policy()
+        obs, _ = penv.reset(seed=run.seed)
+        policy.reset(penv, run.seed)
+        while penv.agents:
+            obs, *_ = penv.step(policy.act(obs, penv))
         env = penv.unwrapped
+        metrics = episode_metrics(env)
+        metrics.update(paper_metrics(env))
+        metrics["reformed"] = (math.nan if env.n_uavs == 1 else float(math.isfinite(metrics["time_to_reform"])))
         record.update(status="ok", steps=int(env.step_count), metrics=metrics, error=None)
-        if run.seed == FIGURE_SEED:
+        if run.seed == FIGURE_SEED and not run.horizon_check:
             record["trace"] = _trace(env, 1 if env.n_uavs == 1 else 5)
-            if setting.picture and picture_dir is not None:
-                name = f"{run.experiment}-{run.setting}-{run.variant}.png".lower()
-                plot_episode(env, f"{picture_dir}/{name}", title=f"{run.experiment} {run.setting}: {run.variant}, "
-                             f"seed {run.seed}")
-                record["picture"] = name
     except Exception as e:  # one broken run must not stop the others: record it
         record.update(status="failed", steps=None, metrics=None,
                       error="".join(traceback.format_exception(type(e), e, e.__traceback__)))
@@ -414,13 +416,38 @@ PLAN_FILE = "plan.json"
 
 
 def read_runs(out) -> list[dict]:
-    """The records of ``out/runs.jsonl`` (see ``files.read_jsonl``: a torn last line is skipped)."""
-    return read_jsonl(Path(out) / RUNS_FILE, "run record", frozenset({"key"}))
+    """The records of ``out/runs.jsonl`` (see ``files.read_jsonl``: a torn last line is skipped).
+
+    A folder written by reproduction format 1 (experiments E1-E6 on the engineered controllers, before the
+    paper-faithful planners) is refused with a clear message: its records cannot answer the v2 claims.
+    """
+    out = Path(out)
+    records = read_jsonl(out / RUNS_FILE, "run record", frozenset({"key"}))
+    plan = json.loads((out / PLAN_FILE).read_text()) if (out / PLAN_FILE).exists() else {}
+    if records and plan.get("format") != FORMAT:
+        raise ValueError(f"out={str(out)!r} holds {len(records)} runs of reproduction format {plan.get('format', 1)} "
+                         f"(the engineered controllers); this is format {FORMAT}: choose another --out or move the "
+                         "old folder away (its README.md and summary.json stay readable as they are)")
+    return records
+
+
+def _play_all(out: Path, runs: list[Run], records: list[dict], workers: int, progress: bool, desc: str,
+              code: str) -> None:
+    from tqdm import tqdm
+
+    with tqdm(total=len(runs), desc=desc, unit="run", disable=not progress) as bar:
+        for rec in imap_unordered(play, [(run,) for run in runs], workers):
+            rec["code"] = code
+            append_line(out / RUNS_FILE, json.dumps(rec, allow_nan=True))
+            records.append(rec)
+            bar.update(1)
+            bar.set_postfix(last=rec["key"], refresh=False)
 
 
 def run_all(out, *, seeds: int | None = None, quick: bool = False, resume: bool = False, workers: int = 1,
             progress: bool = True) -> list[dict]:
-    """Play every planned run not yet in ``out/runs.jsonl``, appending one line per run; return all records.
+    """Play every planned run not yet in ``out/runs.jsonl``, appending one line per run, then the horizon
+    checks of the runs that timed out; return all records.
 
     ``out/plan.json`` records the options the folder was started with, so ``resume`` never mixes runs of
     different seed counts or horizons.
@@ -429,27 +456,21 @@ def run_all(out, *, seeds: int | None = None, quick: bool = False, resume: bool 
         raise ValueError(f"workers={workers!r}: expected an integer >= 1")
     planned = plan_runs(seeds, quick)
     out = Path(out)
-    plan = {"seeds": seeds, "quick": bool(quick)}
-    old_plan = json.loads((out / PLAN_FILE).read_text()) if (out / PLAN_FILE).exists() else None
+    plan = {"format": FORMAT, "seeds": seeds, "quick": bool(quick)}
     records = read_runs(out)
+    old_plan = json.loads((out / PLAN_FILE).read_text()) if (out / PLAN_FILE).exists() else None
     if records and not resume:
         raise ValueError(f"out={str(out)!r} already holds {len(records)} runs: pass --resume to continue them "
                          "or choose another --out")
     if old_plan is not None and records and old_plan != plan:
         raise ValueError(f"out={str(out)!r} was started with {old_plan}, not {plan}: resume with the same "
                          "--seeds/--quick or choose another --out")
+    out.mkdir(parents=True, exist_ok=True)
     set_aside_torn_line(out / RUNS_FILE)
     atomic_write_json(out / PLAN_FILE, plan)
     done = {r["key"] for r in records}
-    todo = [r for r in planned if r.key not in done]
-    code = code_version()
-    from tqdm import tqdm
-
-    with tqdm(total=len(todo), desc="reproduce", unit="run", disable=not progress) as bar:
-        for rec in imap_unordered(play, [(run, str(out)) for run in todo], workers):
-            rec["code"] = code
-            append_line(out / RUNS_FILE, json.dumps(rec, allow_nan=True))
-            records.append(rec)
-            bar.update(1)
-            bar.set_postfix(last=rec["key"], refresh=False)
+    code = code_version()                   # once: both phases of one invocation are the same code
+    _play_all(out, [r for r in planned if r.key not in done], records, workers, progress, "reproduce", code)
+    checks = [r for r in horizon_checks(records, quick) if r.key not in done]
+    _play_all(out, checks, records, workers, progress, "horizon x2", code)
     return records
