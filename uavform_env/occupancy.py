@@ -673,7 +673,7 @@ def _integrate_one(tables, values, bits, counts, owner, used, stamps, stamp, dir
             if p < n_rays:
                 break
             kx, ky, kz, tx, ty, tz = ray_advance(kx, ky, kz, sx, sy, sz, tx, ty, tz, ddx, ddy, ddz)
-            if (kx == ekx and ky == eky and kz == ekz) or min(tx, ty, tz) > length:
+            if ((kx == ekx) & (ky == eky) & (kz == ekz)) | (min(tx, ty, tz) > length):
                 break
     if changed:  # segments stay in the box of their end keys (+1 voxel of DDA drift): the changed region
         for a in range(3):
