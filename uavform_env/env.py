@@ -117,6 +117,7 @@ class FormationEnv(ParallelEnv):
 
         self.possible_agents = [f"uav_{i}" for i in range(self.n_uavs)]
         self.agent_name_mapping = {a: i for i, a in enumerate(self.possible_agents)}
+        self._is_follower = np.arange(self.n_uavs) > 0
         self.layout = ObservationLayout(cfg)
         obs_space = self.layout.space()
         act_space = spaces.Box(-1.0, 1.0, (3,), np.float32)
@@ -262,11 +263,14 @@ class FormationEnv(ParallelEnv):
         outside = np.any((pos[:, :2] < lo[:2]) | (pos[:, :2] > hi[:2]), axis=1)
         hit_obstacle, hit_uav = clearance < 0.0, separation < 2.0 * cfg.uav.r_uav
         crashed_now = self.active & (hit_obstacle | hit_uav | outside)
-        self.crash_cause[crashed_now] = np.where(hit_obstacle, _OBSTACLE, np.where(outside, _GEOFENCE, _UAV))[crashed_now]
-        first_crash = crashed_now.any() and not self.crashed.any()
-        self.crashed |= crashed_now
-        self.active &= ~crashed_now
-        self.states[crashed_now, V] = self.states[crashed_now, W] = self.states[crashed_now, VZ] = 0.0
+        first_crash = False
+        if crashed_now.any():
+            cause = np.where(hit_obstacle, _OBSTACLE, np.where(outside, _GEOFENCE, _UAV))
+            self.crash_cause[crashed_now] = cause[crashed_now]
+            first_crash = not self.crashed.any()
+            self.crashed |= crashed_now
+            self.active &= ~crashed_now
+            self.states[crashed_now, V] = self.states[crashed_now, W] = self.states[crashed_now, VZ] = 0.0
 
         self._sense()
         slots = self._true_slots()
@@ -276,8 +280,7 @@ class FormationEnv(ParallelEnv):
         self.success = bool(leader_ok and followers_ok and not self.crashed.any())
 
         target_dist = self._target_distances(slots)
-        is_follower = np.arange(self.n_uavs) > 0
-        rew = compute_rewards(cfg.reward, self._target_dist, target_dist, ferr, is_follower,
+        rew = compute_rewards(cfg.reward, self._target_dist, target_dist, ferr, self._is_follower,
                               crashed_now.astype(float), was_active, acts, self.prev_actions, self.success)
         self._target_dist = target_dist
         self.prev_actions = acts
@@ -342,7 +345,8 @@ class FormationEnv(ParallelEnv):
             scan = perturb_scan(scan, self.states[:, :3], self.config.sensor.r_max, d.range_noise_std, d.ray_dropout,
                                 self._noise_rng, self._dropout_rng)
         live = np.flatnonzero(self.active)
-        self._map_store.integrate(live, self.states[live, :3], scan.endpoints[live], scan.kind[live] == STATIC)
+        rows = slice(None) if live.size == self.n_uavs else live  # views, not copies, while every UAV flies
+        self._map_store.integrate(live, self.states[rows, :3], scan.endpoints[rows], scan.kind[rows] == STATIC)
         self.last_scan = scan
 
     def _clearance(self) -> np.ndarray:
