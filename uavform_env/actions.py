@@ -13,21 +13,25 @@ def check_actions(actions, possible_agents: list[str], live_agents: list[str], s
     """
     if not isinstance(actions, dict):
         raise ValueError(f"actions: expected a dict {{agent: array of shape ({size},)}}, got {type(actions).__name__}")
-    unknown = [a for a in actions if a not in possible_agents]
-    if unknown:
-        raise ValueError(f"actions for unknown agent(s) {unknown}; agents are {possible_agents}")
-    finished = [a for a in actions if a not in live_agents]
-    if finished:
-        raise ValueError(f"actions for agent(s) {finished} that are no longer live; live agents are {live_agents}")
-    missing = [a for a in live_agents if a not in actions]
-    if missing:
+    if actions.keys() != set(live_agents):
+        unknown = [a for a in actions if a not in possible_agents]
+        if unknown:
+            raise ValueError(f"actions for unknown agent(s) {unknown}; agents are {possible_agents}")
+        finished = [a for a in actions if a not in live_agents]
+        if finished:
+            raise ValueError(f"actions for agent(s) {finished} that are no longer live; live agents are {live_agents}")
+        missing = [a for a in live_agents if a not in actions]
         raise ValueError(f"missing actions: no action for live agent(s) {missing}")
-    checked = {}
+    try:  # all at once; a ragged or non-numeric dict is checked agent by agent below, for the message
+        rows = np.asarray(list(actions.values()), dtype=np.float64)
+    except (TypeError, ValueError):
+        rows = None
+    if rows is not None and rows.shape == (len(actions), size) and np.isfinite(rows).all():
+        return dict(zip(actions, np.clip(rows, -1.0, 1.0)))
     for a, act in actions.items():
         arr = np.asarray(act, dtype=np.float64)
         if arr.shape != (size,):
             raise ValueError(f"action of {a}: expected shape ({size},) ({meaning} in [-1, 1]), got shape {arr.shape}")
         if not np.all(np.isfinite(arr)):
             raise ValueError(f"action of {a}: expected finite values in [-1, 1], got {arr.tolist()}")
-        checked[a] = np.clip(arr, -1.0, 1.0)
-    return checked
+    raise ValueError(f"actions: expected one array of shape ({size},) per agent, got {actions!r}")

@@ -117,6 +117,7 @@ class FormationEnv(ParallelEnv):
 
         self.possible_agents = [f"uav_{i}" for i in range(self.n_uavs)]
         self.agent_name_mapping = {a: i for i, a in enumerate(self.possible_agents)}
+        self._is_follower = np.arange(self.n_uavs) > 0
         self.layout = ObservationLayout(cfg)
         obs_space = self.layout.space()
         act_space = spaces.Box(-1.0, 1.0, (3,), np.float32)
@@ -177,6 +178,7 @@ class FormationEnv(ParallelEnv):
         self.scenario, self.world, self._prior = scn, world, prior
         m = scn.mission
         self.goal = np.asarray(m.goal, dtype=np.float64)
+        self._bounds = np.asarray(scn.bounds_lo, dtype=np.float64), np.asarray(scn.bounds_hi, dtype=np.float64)
         self.slot_altitude = m.slot_altitude
 
         n = self.n_uavs
@@ -256,16 +258,19 @@ class FormationEnv(ParallelEnv):
 
         clearance = self._clearance()
         separation = self._separations()
-        lo, hi = np.asarray(self.scenario.bounds_lo), np.asarray(self.scenario.bounds_hi)
+        lo, hi = self._bounds
         pos = self.states[:, :3]
         outside = np.any((pos[:, :2] < lo[:2]) | (pos[:, :2] > hi[:2]), axis=1)
         hit_obstacle, hit_uav = clearance < 0.0, separation < 2.0 * cfg.uav.r_uav
         crashed_now = self.active & (hit_obstacle | hit_uav | outside)
-        self.crash_cause[crashed_now] = np.where(hit_obstacle, _OBSTACLE, np.where(outside, _GEOFENCE, _UAV))[crashed_now]
-        first_crash = crashed_now.any() and not self.crashed.any()
-        self.crashed |= crashed_now
-        self.active &= ~crashed_now
-        self.states[crashed_now, V] = self.states[crashed_now, W] = self.states[crashed_now, VZ] = 0.0
+        first_crash = False
+        if crashed_now.any():
+            cause = np.where(hit_obstacle, _OBSTACLE, np.where(outside, _GEOFENCE, _UAV))
+            self.crash_cause[crashed_now] = cause[crashed_now]
+            first_crash = not self.crashed.any()
+            self.crashed |= crashed_now
+            self.active &= ~crashed_now
+            self.states[crashed_now, V] = self.states[crashed_now, W] = self.states[crashed_now, VZ] = 0.0
 
         self._sense()
         slots = self._true_slots()
@@ -275,8 +280,7 @@ class FormationEnv(ParallelEnv):
         self.success = bool(leader_ok and followers_ok and not self.crashed.any())
 
         target_dist = self._target_distances(slots)
-        is_follower = np.arange(self.n_uavs) > 0
-        rew = compute_rewards(cfg.reward, self._target_dist, target_dist, ferr, is_follower,
+        rew = compute_rewards(cfg.reward, self._target_dist, target_dist, ferr, self._is_follower,
                               crashed_now.astype(float), was_active, acts, self.prev_actions, self.success)
         self._target_dist = target_dist
         self.prev_actions = acts
@@ -292,27 +296,29 @@ class FormationEnv(ParallelEnv):
         live = list(self.agents)
         obs = self._observe()
         infos = self._infos(clearance, separation, ferr, target_dist, truncated=truncated)
-        rewards = {a: float(rew[self.agent_name_mapping[a]]) for a in live}
-        terminations = {a: bool(ended) for a in live}
-        truncations = {a: bool(truncated) for a in live}
+        index = self.agent_name_mapping
+        rew = rew.tolist()
+        rewards = {a: rew[index[a]] for a in live}
+        terminations = dict.fromkeys(live, bool(ended))
+        truncations = dict.fromkeys(live, bool(truncated))
         if cfg.episode.remove_crashed:
             for a in live:
-                if self.crashed[self.agent_name_mapping[a]]:
+                if self.crashed[index[a]]:
                     terminations[a] = True
         self._record(ferr, clearance)
         self.agents = [] if (ended or truncated) else [a for a in live if not terminations[a]]
-        if self.agents:
+        if self.agents and len(self.agents) < len(live):
             self.present = np.isin(self.possible_agents, self.agents)
-        obs = {a: obs[a] for a in live}
-        infos = {a: infos[a] for a in live}
+        if len(live) < self.n_uavs:
+            obs = {a: obs[a] for a in live}
+            infos = {a: infos[a] for a in live}
         return obs, rewards, terminations, truncations, infos
 
     def _validate_actions(self, actions) -> np.ndarray:
         checked = check_actions(actions, self.possible_agents, self.agents, 3,
                                 "forward speed, yaw rate, climb rate")
         acts = np.zeros((self.n_uavs, 3), np.float32)
-        for a, act in checked.items():
-            acts[self.agent_name_mapping[a]] = act
+        acts[[self.agent_name_mapping[a] for a in checked]] = list(checked.values())
         return acts
 
     def _apply_wind(self):
@@ -339,7 +345,8 @@ class FormationEnv(ParallelEnv):
             scan = perturb_scan(scan, self.states[:, :3], self.config.sensor.r_max, d.range_noise_std, d.ray_dropout,
                                 self._noise_rng, self._dropout_rng)
         live = np.flatnonzero(self.active)
-        self._map_store.integrate(live, self.states[live, :3], scan.endpoints[live], scan.kind[live] == STATIC)
+        rows = slice(None) if live.size == self.n_uavs else live  # views, not copies, while every UAV flies
+        self._map_store.integrate(live, self.states[rows, :3], scan.endpoints[rows], scan.kind[rows] == STATIC)
         self.last_scan = scan
 
     def _clearance(self) -> np.ndarray:
@@ -373,14 +380,14 @@ class FormationEnv(ParallelEnv):
 
     def _infos(self, clearance, separation, ferr, target_dist, truncated: bool) -> dict:
         goal_dist = float(np.linalg.norm(self.states[0, :3] - self.goal))
-        success, step = int(self.success), int(self.step_count)
-        return {a: {"clearance": float(clearance[i]), "separation": float(separation[i]),
-                    "formation_error": float(ferr[i]), "target_distance": float(target_dist[i]),
-                    "goal_distance": goal_dist, "speed": float(self.states[i, V]),
-                    "altitude": float(self.states[i, 2]), "crashed": int(self.crashed[i]),
-                    "crash_cause": int(self.crash_cause[i]), "success": success, "end_reason": int(self.end_reason),
-                    "step": step, "TimeLimit.truncated": bool(truncated)}
-                for i, a in enumerate(self.possible_agents)}
+        success, end, step, truncated = int(self.success), int(self.end_reason), int(self.step_count), bool(truncated)
+        per_uav = zip(self.possible_agents, clearance.tolist(), separation.tolist(), ferr.tolist(),
+                      target_dist.tolist(), self.states[:, V].tolist(), self.states[:, 2].tolist(),
+                      self.crashed.astype(np.int64).tolist(), self.crash_cause.tolist())
+        return {a: {"clearance": c, "separation": s, "formation_error": f, "target_distance": t,
+                    "goal_distance": goal_dist, "speed": v, "altitude": z, "crashed": crashed, "crash_cause": cause,
+                    "success": success, "end_reason": end, "step": step, "TimeLimit.truncated": truncated}
+                for a, c, s, f, t, v, z, crashed, cause in per_uav}
 
     def _record(self, ferr, clearance):
         h = self.history

@@ -36,12 +36,12 @@ import numba
 import numpy as np
 
 from .config import MapConfig
-from .dda import coord_key, grid_origin_key, ray_key_bound, ray_keys
+from .dda import coord_key, grid_origin_key, ray_advance, ray_key_bound, ray_setup
 
 BLOCK_SHIFT = 3  # blocks of 2**3 = 8 voxels per axis
 BLOCK_VOXELS = 1 << (3 * BLOCK_SHIFT)
 _MASK = (1 << BLOCK_SHIFT) - 1
-# Bytes per pooled block: log-odds, integrate marks, row bits, occupied count.
+# Bytes per pooled block: log-odds, scan stamps, row bits, occupied count.
 BLOCK_BYTES = BLOCK_VOXELS * 4 + BLOCK_VOXELS + BLOCK_VOXELS // 8 + 4
 CHUNK_SHIFT = 2 * BLOCK_SHIFT  # log2 of a chunk's edge in voxels
 BLOCK_EDGE, CHUNK_EDGE = 1 << BLOCK_SHIFT, 1 << CHUNK_SHIFT  # edges in voxels
@@ -49,7 +49,7 @@ CHUNK_BYTES = BLOCK_VOXELS * 4 + 8  # block entries and the owner entry
 # Deepest pyramid level: OctoMap's depth-1 nodes (tree depth 16; keys align up to 2**15, the root
 # straddles the origin and is not a level).
 MAX_LEVEL = 15
-_UNTOUCHED, _MISS, _HIT = 0, 1, 2  # marks during one integrate call (all-zero between calls)
+_LAST_STAMP = 255  # scan stamps (uint8) run 1.._LAST_STAMP, then every stamp is zeroed and they restart
 _FIRST_CAPACITY = 1024  # pool blocks per map reserved up front (untouched pages cost no RSS); grows by half
 
 
@@ -85,7 +85,8 @@ class _Blocks:
     """One pyramid level of every map of a store: per-map chunk tables into a chunk pool into a block pool.
 
     ``tables`` = (top (n_maps, cx, cy, cz) int32, chunks (C, 512) int32), the block index the kernels
-    take; ``owner[c]`` is chunk c's entry in ``top`` (flat); ``used`` = (blocks, chunks) in use.
+    take; ``owner[c]`` is chunk c's entry in ``top`` (flat); ``used`` = (blocks, chunks) in use;
+    ``stamps`` (P, 512) uint8 the leaves' scan stamps (see ``_integrate_one``).
     """
 
     def __init__(self, key0: np.ndarray, shape: tuple, n_maps: int, capacity: int):
@@ -93,7 +94,7 @@ class _Blocks:
         self.shape = np.asarray(shape, np.int64)
         self.top = np.full((n_maps,) + tuple(-(-n >> CHUNK_SHIFT) for n in shape), -1, np.int32)
         self.used = np.zeros(2, np.int64)
-        self.values = self.marks = self.bits = self.counts = self.chunks = self.owner = None
+        self.values = self.stamps = self.bits = self.counts = self.chunks = self.owner = None
         self.grow(capacity)
 
     @property
@@ -108,15 +109,15 @@ class _Blocks:
                  np.empty((blocks, BLOCK_VOXELS >> BLOCK_SHIFT), np.uint8), np.empty(blocks, np.int32),
                  np.empty((max(16, blocks >> 3), BLOCK_VOXELS), np.int32), np.empty(max(16, blocks >> 3), np.int64))
         if self.values is not None:
-            old = (self.values, self.marks, self.bits, self.counts, self.chunks, self.owner)
+            old = (self.values, self.stamps, self.bits, self.counts, self.chunks, self.owner)
             for new, prev, n in zip(grown, old, [self.used[0]] * 4 + [self.used[1]] * 2):
                 new[:n] = prev[:n]
-        self.values, self.marks, self.bits, self.counts, self.chunks, self.owner = grown
+        self.values, self.stamps, self.bits, self.counts, self.chunks, self.owner = grown
 
     def adopt_pool(self, other: _Blocks) -> None:
         """Take over the (emptied) pools of ``other``."""
-        self.values, self.marks, self.bits, self.counts, self.chunks, self.owner = (
-            other.values, other.marks, other.bits, other.counts, other.chunks, other.owner)
+        self.values, self.stamps, self.bits, self.counts, self.chunks, self.owner = (
+            other.values, other.stamps, other.bits, other.counts, other.chunks, other.owner)
 
     def pool(self) -> tuple:
         """The arguments every block kernel takes, in order."""
@@ -136,7 +137,7 @@ class _Blocks:
 
     @property
     def nbytes(self) -> int:
-        return sum(a.nbytes for a in (self.top, self.values, self.marks, self.bits, self.counts, self.chunks,
+        return sum(a.nbytes for a in (self.top, self.values, self.stamps, self.bits, self.counts, self.chunks,
                                       self.owner))
 
 
@@ -163,6 +164,7 @@ class MapStore:
         self.l_occ = f32(cfg.logodds(cfg.p_occ))
         self.levels = []
         self.dirty = np.empty((self.n_maps, 6), np.int64)  # per map: leaves changed since its pyramid refresh
+        self._scan = np.zeros(1, np.int64)  # the stamp of the last scan integrated (see _integrate_maps)
         self.clear(origin, shape)
         self.maps = [OccupancyMap._view(self, i) for i in range(self.n_maps)]
 
@@ -206,8 +208,9 @@ class MapStore:
         leaves = self.levels[0]
         done = 0
         while done < idx.size:  # the kernel stops before a map that might not fit in the pool
-            done = _integrate_maps(*leaves.pool(), leaves.marks, self.dirty, self.key0, leaves.shape, self.res, idx,
-                                   o, ends, hit, self.l_hit, self.l_miss, self.l_min, self.l_max, self.l_occ, done)
+            done = _integrate_maps(*leaves.pool(), leaves.stamps, self._scan, self.dirty, self.key0, leaves.shape,
+                                   self.res, idx, o, ends, hit, self.l_hit, self.l_miss, self.l_min, self.l_max,
+                                   self.l_occ, done)
             if done < idx.size:
                 leaves.grow()
 
@@ -527,10 +530,9 @@ def _block_at(tables, m, bi, bj, bk):
 
 
 @numba.njit(cache=True)
-def _new_block(tables, values, bits, counts, owner, used, m, bi, bj, bk):
+def _new_block(top, chunks, values, bits, counts, owner, used, m, bi, bj, bk):
     """Allocate block (bi, bj, bk) of map m (all unknown) from the pool, and its chunk if it has none;
     -1 if a pool is full. Callers look the block up first and call this only on a miss."""
-    top, chunks = tables
     ci, cj, ck = bi >> BLOCK_SHIFT, bj >> BLOCK_SHIFT, bk >> BLOCK_SHIFT
     c = np.int64(top[m, ci, cj, ck])
     if used[0] >= values.shape[0] or (c < 0 and used[1] >= chunks.shape[0]):
@@ -580,101 +582,100 @@ def _update_voxel(values, bits, counts, f, update, l_min, l_max, l_occ):
 
 
 @numba.njit(cache=True)
-def _integrate_maps(tables, values, bits, counts, owner, used, marks, dirty, key0, shape, res, indices, origins,
+def _integrate_maps(tables, values, bits, counts, owner, used, stamps, scan, dirty, key0, shape, res, indices, origins,
                     endpoints, hit, l_hit, l_miss, l_min, l_max, l_occ, start):
     """Integrate scan q into map indices[q] for q = start, ...; return the first q not done because the
-    pools might run out during it (grow them and call again from there), or len(indices)."""
+    pools might run out during it (grow them and call again from there), or len(indices).
+
+    Each scan gets the next stamp ``scan[0]`` (1..255); when the stamps wrap, every voxel's is zeroed."""
     inv_res = 1.0 / res
+    n_rays = endpoints.shape[1]
+    ends = np.empty((n_rays, 3))
     for q in range(start, indices.shape[0]):
-        # a ray of K keys enters at most K / 8 + 4 blocks (a block change needs 8 steps along one axis),
-        # and at most K / 64 + 4 chunks
-        need, need_chunks = 0, 0
+        # OctoMap's point3d is float32: round the origin and the endpoints first. A ray of K keys enters
+        # at most K / 8 + 4 blocks (a block change needs 8 steps along one axis), and at most K / 64 + 4 chunks.
         o = origins[q]
         ox, oy, oz = np.float64(np.float32(o[0])), np.float64(np.float32(o[1])), np.float64(np.float32(o[2]))
-        for r in range(endpoints.shape[1]):
-            e = endpoints[q, r]
-            bound = ray_key_bound(ox, oy, oz, np.float64(np.float32(e[0])), np.float64(np.float32(e[1])),
-                                  np.float64(np.float32(e[2])), inv_res)
+        need, need_chunks = 0, 0
+        for r in range(n_rays):
+            for a in range(3):
+                ends[r, a] = np.float32(endpoints[q, r, a])
+            bound = ray_key_bound(ox, oy, oz, ends[r, 0], ends[r, 1], ends[r, 2], inv_res)
             need += bound // (1 << BLOCK_SHIFT) + 5
             need_chunks += bound // (1 << CHUNK_SHIFT) + 5
         if used[0] + need > values.shape[0] or used[1] + need_chunks > tables[1].shape[0]:
             return q
-        _integrate_one(tables, values, bits, counts, owner, used, marks, dirty[indices[q]], key0, shape, res,
-                       indices[q], origins[q], endpoints[q], hit[q], l_hit, l_miss, l_min, l_max, l_occ)
+        scan[0] += 1
+        if scan[0] > _LAST_STAMP:
+            stamps[:, :] = 0
+            scan[0] = 1
+        _integrate_one(tables, values, bits, counts, owner, used, stamps, np.uint8(scan[0]), dirty[indices[q]], key0,
+                       shape, res, indices[q], ox, oy, oz, ends, hit[q], l_hit, l_miss, l_min, l_max, l_occ)
     return indices.shape[0]
 
 
 @numba.njit(cache=True)
-def _integrate_one(tables, values, bits, counts, owner, used, marks, dirty, key0, shape, res, m, origin, endpoints,
-                   hit, l_hit, l_miss, l_min, l_max, l_occ):
-    """OctoMap's computeUpdate + updateNode for one map (see ``OccupancyMap.integrate``); the pool has room.
+def _integrate_one(tables, values, bits, counts, owner, used, stamps, stamp, dirty, key0, shape, res, m, ox, oy, oz,
+                   ends, hit, l_hit, l_miss, l_min, l_max, l_occ):
+    """OctoMap's computeUpdate + updateNode for one map (see ``OccupancyMap.integrate``), from the float32
+    origin (ox, oy, oz) to the float32 ``ends``; the pool has room.
 
-    Hit voxels are marked first; each ray then applies a miss to every unmarked voxel it crosses
-    and marks it; finally the hits are applied and all marks cleared.
+    A voxel is updated at most once per scan: only if its stamp is not yet this scan's ``stamp``, which
+    the update sets. Pass r < R visits the hit voxel of ray r (a hit beats a miss: hits go first), pass
+    R + r walks ray r's ``computeRayKeys`` voxels (``ray_setup`` / ``ray_advance``) and applies misses.
+    The last block looked up is kept, so a walk resolves a block only when it enters one (the lookup is
+    written out here: an inlined helper that may call ``_new_block`` costs refcounting on every voxel).
     """
     nx, ny, nz = shape[0], shape[1], shape[2]
     top, chunks = tables
     flat_values = values.reshape(values.size)
-    flat_marks = marks.reshape(marks.size)
+    flat_stamps = stamps.reshape(stamps.size)
     flat_bits = bits.reshape(bits.size)
     inv_res = 1.0 / res
-    n_rays = endpoints.shape[0]
-    # OctoMap's point3d is float32: round the origin and the endpoints first.
-    ox, oy, oz = np.float64(np.float32(origin[0])), np.float64(np.float32(origin[1])), np.float64(np.float32(origin[2]))
-    ends = np.empty((n_rays, 3))
-    capacity, longest = 0, 0
-    lo = np.array([coord_key(ox, inv_res), coord_key(oy, inv_res), coord_key(oz, inv_res)]) - key0
-    hi = lo.copy()
-    for r in range(n_rays):
-        for a in range(3):
-            ends[r, a] = np.float32(endpoints[r, a])
-            e = coord_key(ends[r, a], inv_res) - key0[a]
-            lo[a], hi[a] = min(lo[a], e), max(hi[a], e)
-        bound = ray_key_bound(ox, oy, oz, ends[r, 0], ends[r, 1], ends[r, 2], inv_res)
-        capacity += bound + 1
-        longest = max(longest, bound)
-    touched = np.empty(capacity, np.int64)
-    keys = np.empty((longest, 3), np.int64)
-    n = 0
-    for r in range(n_rays):  # occupied endpoints first: a hit beats a miss of the same scan
-        if hit[r]:
-            i = coord_key(ends[r, 0], inv_res) - key0[0]
-            j = coord_key(ends[r, 1], inv_res) - key0[1]
-            k = coord_key(ends[r, 2], inv_res) - key0[2]
-            if 0 <= i < nx and 0 <= j < ny and 0 <= k < nz:
-                c = top[m, i >> CHUNK_SHIFT, j >> CHUNK_SHIFT, k >> CHUNK_SHIFT]
-                b = np.int64(chunks[c, _offset(i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT)] if c >= 0 else -1)
-                if b < 0:  # read inline: a call passing the pools' arrays per voxel would cost refcounting
-                    b = _new_block(tables, values, bits, counts, owner, used, m, i >> BLOCK_SHIFT, j >> BLOCK_SHIFT,
-                                   k >> BLOCK_SHIFT)
-                f = (b << (3 * BLOCK_SHIFT)) | _offset(i, j, k)
-                if flat_marks[f] == _UNTOUCHED:
-                    flat_marks[f] = _HIT
-                    touched[n] = f
-                    n += 1
+    n_rays = ends.shape[0]
     kx0, ky0, kz0 = key0[0], key0[1], key0[2]
-    for r in range(n_rays):  # misses, one per voxel and scan
-        c = ray_keys(ox, oy, oz, ends[r, 0], ends[r, 1], ends[r, 2], res, keys)
-        for q in range(c):
-            i, j, k = keys[q, 0] - kx0, keys[q, 1] - ky0, keys[q, 2] - kz0
+    okx, oky, okz = coord_key(ox, inv_res), coord_key(oy, inv_res), coord_key(oz, inv_res)
+    lo = np.array([okx - kx0, oky - ky0, okz - kz0])
+    hi = lo.copy()
+    changed = False
+    cbi, cbj, cbk, base = np.int64(-1), np.int64(-1), np.int64(-1), np.int64(0)  # the last block looked up
+    for p in range(2 * n_rays):
+        r = p % n_rays
+        ex, ey, ez = ends[r, 0], ends[r, 1], ends[r, 2]
+        ekx, eky, ekz = coord_key(ex, inv_res), coord_key(ey, inv_res), coord_key(ez, inv_res)
+        if p < n_rays:  # the hit voxel only
+            lo[0], lo[1], lo[2] = min(lo[0], ekx - kx0), min(lo[1], eky - ky0), min(lo[2], ekz - kz0)
+            hi[0], hi[1], hi[2] = max(hi[0], ekx - kx0), max(hi[1], eky - ky0), max(hi[2], ekz - kz0)
+            if not hit[r]:
+                continue
+            kx, ky, kz, update = ekx, eky, ekz, l_hit
+            sx, sy, sz, tx, ty, tz, ddx, ddy, ddz, length = 0, 0, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        else:
+            if okx == ekx and oky == eky and okz == ekz:
+                continue
+            kx, ky, kz, update = okx, oky, okz, l_miss
+            sx, sy, sz, tx, ty, tz, ddx, ddy, ddz, length = ray_setup(ox, oy, oz, ex, ey, ez, okx, oky, okz, res)
+        while True:
+            i, j, k = kx - kx0, ky - ky0, kz - kz0
             if (i | j | k) >= 0 and i < nx and j < ny and k < nz:
-                c = top[m, i >> CHUNK_SHIFT, j >> CHUNK_SHIFT, k >> CHUNK_SHIFT]
-                b = np.int64(chunks[c, _offset(i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT)] if c >= 0 else -1)
-                if b < 0:  # read inline: a call passing the pools' arrays per voxel would cost refcounting
-                    b = _new_block(tables, values, bits, counts, owner, used, m, i >> BLOCK_SHIFT, j >> BLOCK_SHIFT,
-                                   k >> BLOCK_SHIFT)
-                f = (b << (3 * BLOCK_SHIFT)) | _offset(i, j, k)
-                if flat_marks[f] == _UNTOUCHED:
-                    flat_marks[f] = _MISS
-                    touched[n] = f
-                    n += 1
-                    _update_voxel(flat_values, flat_bits, counts, f, l_miss, l_min, l_max, l_occ)
-    for q in range(n):
-        f = touched[q]
-        if flat_marks[f] == _HIT:
-            _update_voxel(flat_values, flat_bits, counts, f, l_hit, l_min, l_max, l_occ)
-        flat_marks[f] = _UNTOUCHED
-    if n > 0:  # segments stay in the box of their end keys (+1 voxel of DDA drift): the changed region
+                bi, bj, bk = i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT
+                if bi != cbi or bj != cbj or bk != cbk:
+                    c = top[m, bi >> BLOCK_SHIFT, bj >> BLOCK_SHIFT, bk >> BLOCK_SHIFT]
+                    b = np.int64(chunks[c, _offset(bi, bj, bk)] if c >= 0 else -1)
+                    if b < 0:  # a reused block's old stamps are older than this scan's (see _integrate_maps)
+                        b = _new_block(top, chunks, values, bits, counts, owner, used, m, bi, bj, bk)
+                    cbi, cbj, cbk, base = bi, bj, bk, b << (3 * BLOCK_SHIFT)
+                f = base | _offset(i, j, k)
+                if flat_stamps[f] != stamp:
+                    flat_stamps[f] = stamp
+                    changed = True
+                    _update_voxel(flat_values, flat_bits, counts, f, update, l_min, l_max, l_occ)
+            if p < n_rays:
+                break
+            kx, ky, kz, tx, ty, tz = ray_advance(kx, ky, kz, sx, sy, sz, tx, ty, tz, ddx, ddy, ddz)
+            if ((kx == ekx) & (ky == eky) & (kz == ekz)) | (min(tx, ty, tz) > length):
+                break
+    if changed:  # segments stay in the box of their end keys (+1 voxel of DDA drift): the changed region
         for a in range(3):
             dirty[a] = min(dirty[a], max(lo[a] - 1, 0))
             dirty[a + 3] = max(dirty[a + 3], min(hi[a] + 1, shape[a] - 1))
@@ -701,7 +702,7 @@ def _pool_maps(child_tables, child_values, child_shape, child_key0, tables, valu
                     if pb < 0 and not _children_known(child_tables, child_shape, child_key0, key0, m, pbi, pbj, pbk):
                         continue
                     if pb < 0:
-                        pb = _new_block(tables, values, bits, counts, owner, used, m, pbi, pbj, pbk)
+                        pb = _new_block(tables[0], tables[1], values, bits, counts, owner, used, m, pbi, pbj, pbk)
                         if pb < 0:
                             return False
                     for pi in range(max(o[0], pbi << BLOCK_SHIFT), min(o[3], ((pbi + 1) << BLOCK_SHIFT) - 1) + 1):

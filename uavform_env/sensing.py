@@ -170,20 +170,29 @@ def _cast_rays(occupied, key0, res, positions, dirs, r_max, uav_radius, ranges, 
     cells = occupied.reshape(nx * ny * nz)
     inv_res = 1.0 / res
     n_uav, n_ray = dirs.shape[0], dirs.shape[1]
+    # The other UAVs a ray of UAV a can reach within r_max (1 m spare against rounding), in index order so
+    # that ties go to the lower index: (offset from a, squared distance minus radius squared).
+    near = np.empty((n_uav, 4))
+    reach = (r_max + uav_radius + 1.0) ** 2
     for a in range(n_uav):
         ox, oy, oz = positions[a, 0], positions[a, 1], positions[a, 2]
         okx, oky, okz = coord_key(ox, inv_res), coord_key(oy, inv_res), coord_key(oz, inv_res)
+        n_near = 0
+        if uav_radius > 0.0:
+            for b in range(n_uav):
+                cx, cy, cz = positions[b, 0] - ox, positions[b, 1] - oy, positions[b, 2] - oz
+                if b != a and cx * cx + cy * cy + cz * cz <= reach:
+                    near[n_near, 0], near[n_near, 1], near[n_near, 2] = cx, cy, cz
+                    near[n_near, 3] = cx * cx + cy * cy + cz * cz - uav_radius * uav_radius
+                    n_near += 1
         for r in range(n_ray):
             dx, dy, dz = dirs[a, r, 0], dirs[a, r, 1], dirs[a, r, 2]
             # Nearest non-grid obstacle within r_max: another UAV, then the ground (which wins ties).
             t_lim = r_max
             lim_kind = NOTHING
             if uav_radius > 0.0:
-                for b in range(n_uav):
-                    if b == a:
-                        continue
-                    cx, cy, cz = positions[b, 0] - ox, positions[b, 1] - oy, positions[b, 2] - oz
-                    c = cx * cx + cy * cy + cz * cz - uav_radius * uav_radius
+                for b in range(n_near):
+                    cx, cy, cz, c = near[b, 0], near[b, 1], near[b, 2], near[b, 3]
                     proj = cx * dx + cy * dy + cz * dz
                     if c <= 0.0:
                         t = 0.0  # inside the other UAV's sphere
