@@ -16,7 +16,7 @@ import pytest
 from uavform_env import __version__
 from uavform_env.cli import build_parser, main
 from uavform_env.evaluation.runner import code_version
-from uavform_env.kernels import MESSAGE, CompileNotice, cold_modules
+from uavform_env.kernels import MESSAGE, cold_modules, compile_notice
 from uavform_env.scenarios import Scenario, list_scenarios, make_scenario
 
 WINDOW = "examples/scenarios/window.toml"     # one UAV, a wall with a window 8 m ahead
@@ -230,14 +230,23 @@ def test_the_compile_notice_is_printed_once_while_kernels_are_cold(tmp_path, mon
     import nu_kernels
 
     assert cold_modules() == ["nu_kernels"]
-    notice = CompileNotice()
-    assert notice() and notice() is False
+    assert compile_notice()
     assert capsys.readouterr().err == MESSAGE + "\n"
     assert nu_kernels.twice(2) == 4                              # compiles and writes the cache index
-    assert cold_modules() == [] and CompileNotice()() is False
+    assert cold_modules() == [] and compile_notice() is False
     nu_kernels.twice.overloads.clear()                           # a new process: only the disk cache is left
     assert cold_modules() == []
     monkeypatch.delitem(sys.modules, "nu_kernels")
+
+
+def test_an_env_checks_for_cold_kernels_at_its_first_reset_only(monkeypatch):
+    from uavform_env import parallel_env
+    calls = []
+    monkeypatch.setattr(sys.modules["uavform_env.env"], "compile_notice", lambda: calls.append(1))
+    penv = parallel_env(scenario="forest@1", n_uavs=2, max_cycles=5)
+    penv.reset(seed=0)
+    penv.reset(seed=1)
+    assert calls == [1]
 
 
 # ----------------------------------------------------------------------------- why a flight ended

@@ -144,12 +144,10 @@ def _fly(args) -> int:
 
     from .evaluation.runner import code_version
     from .files import atomic_write_json
-    from .kernels import compile_notice
     from .render import plot_episode, write_video
     from .rollout import run_episode
 
-    penv, policy, out = _preflight_fly(args)
-    compile_notice()
+    penv, policy, out = _preflight_fly(args)          # the env's first reset says when kernels compile
     frames = []
 
     def grab(env):

@@ -133,6 +133,7 @@ class FormationEnv(ParallelEnv):
         self._layouts: dict = {}                                 # see _layout
         self.world = None
         self._renderer = None
+        self._compile_checked = False                          # the first reset tells a cold numba cache
 
     # ------------------------------------------------------------------ spaces
     def observation_space(self, agent):
@@ -160,7 +161,9 @@ class FormationEnv(ParallelEnv):
 
     # ------------------------------------------------------------------ reset
     def reset(self, seed: int | None = None, options: dict | None = None):
-        compile_notice()                      # one stderr line at the first reset if numba's cache is cold
+        if not self._compile_checked:         # one stderr line at the first reset if numba's cache is cold
+            self._compile_checked = True
+            compile_notice()
         if seed is not None:
             self._episode_seeds = np.random.default_rng(seed)
         elif self._episode_seeds is not None:   # Gymnasium's convention: unseeded resets continue the seeded stream

@@ -45,26 +45,13 @@ def cold_modules() -> list[str]:
     return cold
 
 
-class CompileNotice:
-    """Prints ``MESSAGE`` once to stderr when kernels are cold; later calls do nothing.
+def compile_notice(stream=None) -> bool:
+    """Print ``MESSAGE`` to stderr (or ``stream``) if loaded kernels are cold (``cold_modules``); True if printed.
 
-    One instance, ``compile_notice``, serves the process (the CLI before a flight, the env at its first
-    ``reset``): its ``checked`` flag is the only state, and it exists so the check (a few dozen small
-    file reads) and the message happen once per process rather than at every reset.
+    The env calls it once, at its first ``reset`` (which is where the kernels compile, the policy's right
+    after in its first ``act``), so a user sees one line instead of a silent wait.
     """
-
-    def __init__(self):
-        self.checked = False
-
-    def __call__(self, stream=None) -> bool:
-        """True if the message was printed now."""
-        if self.checked:
-            return False
-        self.checked = True
-        if not cold_modules():
-            return False
-        print(MESSAGE, file=stream if stream is not None else sys.stderr, flush=True)
-        return True
-
-
-compile_notice = CompileNotice()
+    if not cold_modules():
+        return False
+    print(MESSAGE, file=stream if stream is not None else sys.stderr, flush=True)
+    return True
