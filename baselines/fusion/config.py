@@ -98,6 +98,12 @@ class ExpertConfig(Config):
                        neighbour did), is left to DWA, whose admissibility keeps the clearance and the separation:
                        the spec's stop-and-climb away never ends beside a floor-to-ceiling wall (a follower froze
                        at a corridor's mouth), nor beside a parked leader [X]
+    hold_radius, k_hold  station keeping (``rules.station_keep``): a holding UAV (the arrived leader at its goal, a
+                       UAV with no way to its goal) pushed farther than ``hold_radius`` from its hold point turns
+                       toward it and flies back at ``k_hold`` times the distance plus the estimated headwind; a
+                       UAV hovering at v = 0 otherwise drifts with the wind into whatever is downwind [X]
+    wind_tau           time constant (s) of the low-pass filter that estimates the wind from the UAV's own drift
+                       (``rules.wind_estimate``: observed minus commanded motion) [X]
     park_turn          the parked leader turns in place (v = 0) to the heading nearest its own whose follower
                        slots are all free in its own map and inside the world bounds: parked at the goal, it
                        can otherwise leave a slot inside an obstacle, and the formation can never close [X]
@@ -148,6 +154,9 @@ class ExpertConfig(Config):
     k_gap: float = 1.0
     gap_speed: float = 0.3
     climb_target_limit: bool = True
+    hold_radius: float = 0.25
+    k_hold: float = 0.5
+    wind_tau: float = 1.0
     park_turn: bool = True
     lateral_emergency_to_dwa: bool = True
 
@@ -164,7 +173,9 @@ class ExpertConfig(Config):
         **{name: in_range(0.0) for name in ("replan_check_period", "k_f", "k_h", "k_z", "T_stuck", "climb_lookahead",
                                             "column_hold", "vfh_neighbour_radius", "rejoin_distance", "dock_radius",
                                             "trail_spacing", "arrive_radius", "stuck_window", "gap_lookahead",
-                                            "gap_depth", "gap_margin", "k_gap", "gap_speed", "leader_stopped_speed")},
+                                            "gap_depth", "gap_margin", "k_gap", "gap_speed", "leader_stopped_speed",
+                                            "hold_radius", "k_hold")},
+        "wind_tau": in_range(0.0, lo_open=True),
         "leader_speed_cap": in_range(0.0, 1.0, lo_open=True),
         "yield_factor": in_range(0.0, 1.0),
         "min_leader_scale": in_range(0.0, 1.0),

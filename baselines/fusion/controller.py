@@ -21,7 +21,7 @@ from typing import NamedTuple
 import numpy as np
 
 from uavform_env.dynamics import PSI, V, VZ, W, commands_to_actions, wrap
-from uavform_env.formation import slot_positions
+from uavform_env.formation import formation_slots, slot_positions
 from uavform_env.world import grid_frame
 
 from ..astar import GlobalPath, Raster, inflate, plan_path, replan_trigger
@@ -31,7 +31,7 @@ from ..vfh3d import VFHPlanner, VFHState
 from .config import ExpertConfig
 from .kernels import (closest_approach, columns_without_gap, gap_altitude_kernel, in_sphere, open_level_way,
                       segment_clear, surface_clearance)
-from .rules import RULES, Command, Cycle, bearing_error, clamp, leader_parked
+from .rules import RULES, Command, Cycle, bearing_error, clamp, leader_parked, station_keep, wind_estimate
 
 LEVEL, CLIMB, BLOCKED = "level", "climb", "blocked"
 
@@ -61,6 +61,10 @@ class _UAVMemory:
     park_psi: float | None = None
     best_goal_distance: float = math.inf
     last_progress_time: float = 0.0
+    wind: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    prev_pose: tuple | None = None
+    homing: bool = False
+    hold_xy: np.ndarray | None = None
 
 
 class _Local(NamedTuple):
@@ -143,8 +147,9 @@ class FusionExpert(OnboardPolicy):
         if view.crashed:
             return np.zeros(3)
         mem = self.memory[view.agent]
+        wind_estimate(view, mem, cfg)
         t = view.step * view.limits.dt
-        z_slot = view.z_ref + view.slot_offset[2]
+        z_slot = _altitude_target(view)
         if view.is_leader and self._arrived(view, mem, cfg):
             return self._park(view, mem, cfg, z_slot)
         local = self._local(view, cfg)
@@ -152,7 +157,11 @@ class FusionExpert(OnboardPolicy):
         if target is None:                                      # unreachable: hold position safely
             self.diagnostics[view.agent] = {"mode": mem.mode, "stuck": True, "unreachable": True,
                                             "replans": mem.replans}
-            return np.array([0.0, 0.0, self._hold_altitude(view, cfg, z_slot)])
+            if mem.hold_xy is None:
+                mem.hold_xy = view.state[:2].copy()
+            cmd = station_keep(view, mem, cfg, mem.hold_xy, float(view.state[PSI]))
+            return np.array([cmd.v, cmd.w, self._hold_altitude(view, cfg, z_slot)])
+        mem.hold_xy = None
         vertical = self._vertical_decision(view, mem, cfg, target, local, z_slot)
         cmd, res, clearance_now = self._dwa(view, mem, cfg, target, vertical, local)
         cycle = Cycle(view, mem, cfg, target.goal, target.lookahead, vertical.heading_goal, res, vertical.vfh,
@@ -183,13 +192,12 @@ class FusionExpert(OnboardPolicy):
         return mem.arrived
 
     def _park(self, view, mem: _UAVMemory, cfg: ExpertConfig, z_slot: float) -> np.ndarray:
-        """The arrived leader holds at the goal, turning in place to a heading with free slots (``park_turn``)."""
+        """The arrived leader holds the goal against the wind (``rules.station_keep``), turning in place to a heading
+        with free slots (``park_turn``)."""
         self.diagnostics[view.agent] = {"mode": mem.mode, "stuck": False, "arrived": True, "replans": mem.replans}
-        w_c = 0.0
-        if cfg.park_turn:
-            lim = view.limits
-            w_c = clamp(wrap(_park_heading(view, mem, cfg) - view.state[PSI]), -lim.w_max, lim.w_max)
-        return np.array([0.0, w_c, self._hold_altitude(view, cfg, z_slot)])
+        heading = _park_heading(view, mem, cfg) if cfg.park_turn else float(view.state[PSI])
+        cmd = station_keep(view, mem, cfg, view.goal[:2], heading)
+        return np.array([cmd.v, cmd.w, self._hold_altitude(view, cfg, z_slot)])
 
     def _local(self, view, cfg: ExpertConfig) -> _Local:
         """The occupied voxels within DWA's reach (octree level ``dwa_map_level``) and the neighbours (g6)."""
@@ -307,7 +315,7 @@ class FusionExpert(OnboardPolicy):
         if view.is_leader:
             target = view.goal
         elif leader_parked(view, cfg):
-            target = np.array([goal[0], goal[1], view.z_ref + view.slot_offset[2]])
+            target = np.array([goal[0], goal[1], _altitude_target(view)])
         else:
             return False
         return bool(math.hypot(target[0] - pos[0], target[1] - pos[1]) < cfg.dock_radius
@@ -391,7 +399,7 @@ class FusionExpert(OnboardPolicy):
         extent = np.asarray(occ_map.shape) * res
         centres, _ = occ_map.occupied_in_sphere(occ_map.origin + extent / 2, float(np.linalg.norm(extent)) / 2 + res)
         if cfg.astar_layer == "band":
-            columns = centres[np.abs(centres[:, 2] - view.z_ref) <= h_b + res / 2, :2]
+            columns = centres[np.abs(centres[:, 2] - _altitude_target(view)) <= h_b + res / 2, :2]
         else:
             columns = columns_without_gap(occ_map, centres, lim.z_min, lim.z_max, 2 * h_b + res)
         blocked = np.zeros(self.raster.shape, bool)
@@ -399,7 +407,7 @@ class FusionExpert(OnboardPolicy):
         _mark(blocked, self.raster, columns)
         prior = view.prior
         if prior.kind != "none":
-            limit = view.z_ref - h_b if cfg.astar_layer == "band" else lim.z_max - 2 * h_b
+            limit = _altitude_target(view) - h_b if cfg.astar_layer == "band" else lim.z_max - 2 * h_b
             cells = np.argwhere(prior.heights > limit)
             _mark(blocked, self.raster, prior.origin + (cells + 0.5) * prior.resolution)
         return blocked
@@ -512,6 +520,12 @@ class FusionExpert(OnboardPolicy):
 
 
 # ---------------------------------------------------------------------- helpers
+def _altitude_target(view) -> float:
+    """The altitude a UAV flies to: the goal's for the leader, its slot's for a follower (``view.slot``, placed by
+    ``formation.formation_slots``: z_ref + dz for version-1 missions, the leader's altitude + dz otherwise)."""
+    return float(view.goal[2] if view.is_leader else view.slot[2])
+
+
 def _raster_for(view, res: float) -> Raster:
     origin, shape = grid_frame(view.bounds_lo[:2], view.bounds_hi[:2], res)
     return Raster(tuple(origin), res, shape)
@@ -625,7 +639,8 @@ def _predict_unicycle(state, horizon: float, dt: float):
 
 def _slots_free(view, psi: float, margin: float) -> bool:
     """Whether every follower slot of a leader at its position with heading ``psi`` is free in its own map."""
-    for slot in slot_positions(view.state[:2], psi, view.offsets[1:], view.z_ref):
+    at_goal = np.array([view.state[0], view.state[1], view.goal[2]])
+    for slot in formation_slots(at_goal, psi, view.offsets[1:], view.z_ref, view.slot_altitude):
         if np.any(slot[:2] < view.bounds_lo[:2] + margin) or np.any(slot[:2] > view.bounds_hi[:2] - margin):
             return False
         if view.occupancy.occupied_within(slot, margin):

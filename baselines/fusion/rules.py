@@ -14,7 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from uavform_env.dynamics import PSI, V, wrap
+from uavform_env.dynamics import PSI, V, W, integrate, wrap
 
 from .kernels import closest_approach
 
@@ -109,6 +109,50 @@ def emergency_escape(cmd: Command, c: Cycle) -> None:
 
 RULES = (braking_fallback, dock_turn, reverse_turn, emergency_escape)
 """The rules after DWA, in the order they act on the command (later ones override earlier ones)."""
+
+
+# ---------------------------------------------------------------------- the hold stage (no DWA)
+def station_keep(view, mem, cfg, hold_xy, heading: float) -> Command:
+    """[X] ``hold_radius``, ``k_hold``: a UAV holding a point (the arrived leader at its goal; a UAV with no way to
+    its goal, where it stopped) keeps it against the wind. A unicycle with v >= 0 has no lateral control: once
+    pushed more than ``hold_radius`` away it turns toward the point (in place while that lies more than
+    ``dock_turn_angle`` off its nose) and flies back at ``k_hold`` times the distance plus the headwind its own
+    drift estimates (``mem.wind``), scaled by the cosine of its bearing error and capped at the pure-pursuit speed
+    that still steers onto the point, until it is within ``hold_radius / 2``. There it turns to ``heading`` and
+    flies only against the headwind along its nose. The returned ``vz`` is 0 (the caller holds altitude)."""
+    s, lim = view.state, view.limits
+    to_hold = np.asarray(hold_xy, dtype=np.float64) - s[:2]
+    dist = math.hypot(to_hold[0], to_hold[1])
+    if dist > cfg.hold_radius:
+        mem.homing = True
+    elif dist < cfg.hold_radius / 2:
+        mem.homing = False
+    if not mem.homing:
+        nose = np.array([math.cos(s[PSI]), math.sin(s[PSI])])
+        return Command(max(0.0, -float(mem.wind @ nose)), clamp(wrap(heading - s[PSI]), -lim.w_max, lim.w_max), 0.0)
+    err = bearing_error(s, to_hold)
+    w = clamp(err, -lim.w_max, lim.w_max)
+    if abs(err) > cfg.dock_turn_angle:
+        return Command(0.0, w, 0.0, turning=True)
+    headwind = max(0.0, -float(mem.wind @ to_hold) / dist)
+    v = (cfg.k_hold * dist + headwind) * math.cos(err)
+    sin_err = abs(math.sin(err))
+    if sin_err > 1e-9:
+        v = min(v, lim.w_max * dist / (2.0 * sin_err))          # pure pursuit onto the point (no orbit)
+    return Command(clamp(v, 0.0, lim.v_max), w, 0.0)
+
+
+def wind_estimate(view, mem, cfg) -> None:
+    """[X] ``wind_tau``: the horizontal wind from the UAV's own drift. The last cycle's pose moved by the commands
+    now in its state (the kinematic model of spec (a)) predicts this pose; what is left over per second is
+    the drift, low-pass filtered with time constant ``wind_tau`` into ``mem.wind`` (zero in still air)."""
+    s, dt = view.state, view.limits.dt
+    prev = mem.prev_pose
+    if prev is not None:
+        x, y, _, _ = integrate(prev[0], prev[1], 0.0, prev[2], s[V], s[W], 0.0, dt)
+        drift = np.array([s[0] - x, s[1] - y]) / dt
+        mem.wind = mem.wind + min(1.0, dt / cfg.wind_tau) * (drift - mem.wind)
+    mem.prev_pose = (float(s[0]), float(s[1]), float(s[PSI]))
 
 
 # ---------------------------------------------------------------------- helpers (the controller uses them too)
