@@ -63,8 +63,8 @@ class _UAVMemory:
     last_progress_time: float = 0.0
     wind: np.ndarray = field(default_factory=lambda: np.zeros(2))
     prev_pose: tuple | None = None
-    homing: bool = False
     hold_xy: np.ndarray | None = None
+    cruise_z: float | None = None
 
 
 class _Local(NamedTuple):
@@ -149,7 +149,7 @@ class FusionExpert(OnboardPolicy):
         mem = self.memory[view.agent]
         wind_estimate(view, mem, cfg)
         t = view.step * view.limits.dt
-        z_slot = _altitude_target(view)
+        z_slot = _altitude_target(view, mem, cfg)
         if view.is_leader and self._arrived(view, mem, cfg):
             return self._park(view, mem, cfg, z_slot)
         local = self._local(view, cfg)
@@ -163,9 +163,9 @@ class FusionExpert(OnboardPolicy):
             return np.array([cmd.v, cmd.w, self._hold_altitude(view, cfg, z_slot)])
         mem.hold_xy = None
         vertical = self._vertical_decision(view, mem, cfg, target, local, z_slot)
-        cmd, res, clearance_now = self._dwa(view, mem, cfg, target, vertical, local)
+        cmd, res, clearance_now, obstacles, radii, docking = self._dwa(view, mem, cfg, target, vertical, local)
         cycle = Cycle(view, mem, cfg, target.goal, target.lookahead, vertical.heading_goal, res, vertical.vfh,
-                      local.movers_pos, local.movers_vel)
+                      local.movers_pos, local.movers_vel, obstacles, radii, docking)
         for rule in RULES:
             rule(cmd, cycle)
         self.diagnostics[view.agent] = {
@@ -274,28 +274,33 @@ class FusionExpert(OnboardPolicy):
 
     # ------------------------------------------------------------------ stage 3: DWA
     def _dwa(self, view, mem: _UAVMemory, cfg: ExpertConfig, target: _Target, vertical: _Vertical, local: _Local):
-        """(command, DWA result, current clearance): DWA toward the heading goal at the vertical decision's climb
-        rate, with the world's bounds as walls; if nothing is admissible while climbing, holding altitude is tried."""
+        """(command, DWA result, current clearance, DWA's obstacle points and radii, whether on the final approach):
+        DWA toward the heading goal at the vertical decision's climb
+        rate, with the world's bounds as walls and the estimated wind carrying the rollouts (``wind_drift``); if nothing is admissible while climbing, holding altitude is tried."""
         lim = view.limits
         s = view.state
         pos = s[:3]
         obstacles, radius = vertical.obstacles, vertical.radius
-        clearance_now = surface_clearance(pos, obstacles, radius, lim.r_uav)
+        clearance_now = surface_clearance(pos, obstacles, radius, lim.r_uav)   # (without the wind margin)
         dwa_cfg = cfg.dwa
-        if cfg.final_approach_free and self._final_approach(view, target.goal, obstacles, radius, cfg):
+        if cfg.final_approach_free and self._final_approach(view, target.goal, obstacles, radius, cfg,
+                                                            cfg.dock_radius):
             dwa_cfg = replace(dwa_cfg, beta=0.0)
+        docking = view.is_leader and self._final_approach(view, target.goal, obstacles, radius, cfg,
+                                                          cfg.approach_radius)
         fence = _geofence(pos, local.reach, view.bounds_lo, view.bounds_hi, cfg.geofence_spacing)
-        radii = np.full(len(obstacles), radius)
+        radii = np.full(len(obstacles), radius + cfg.wind_margin * math.hypot(mem.wind[0], mem.wind[1]))
         if len(fence):
             obstacles = np.concatenate([obstacles, fence])
             radii = np.concatenate([radii, np.zeros(len(fence))])
         alive_pos, alive_vel = local.movers_pos[view.neighbour_alive], local.movers_vel[view.neighbour_alive]
+        drift = mem.wind if cfg.wind_drift and mem.wind.any() else None    # the rollouts drift with the wind
 
         def plan(vz):
             return self.dwa(s, lim, dwa_cfg, vertical.heading_goal, obstacles, radii, vz_cmd=vz,
                             lookahead=target.lookahead, clearance_now=clearance_now, movers_pos=alive_pos,
                             movers_vel=alive_vel, v_ref=target.v_ref, v_cap=vertical.v_cap,
-                            prev_alignment=mem.prev_alignment)
+                            prev_alignment=mem.prev_alignment, drift=drift)
 
         vz = vertical.vz
         res = plan(vz)
@@ -304,21 +309,21 @@ class FusionExpert(OnboardPolicy):
             if held.admissible:
                 res, vz = held, 0.0
         mem.prev_alignment = res.alignment if math.isfinite(res.alignment) else 1.0
-        return Command(res.v, res.w, vz), res, clearance_now
+        return Command(res.v, res.w, vz), res, clearance_now, obstacles, radii, docking
 
     # ------------------------------------------------------------------ helpers of the stages
     @staticmethod
-    def _final_approach(view, goal, obstacles, radius: float, cfg: ExpertConfig) -> bool:
+    def _final_approach(view, goal, obstacles, radius: float, cfg: ExpertConfig, within: float) -> bool:
         """Whether the UAV closes on a fixed target (the leader on its goal, a follower on a parked slot) within
-        ``dock_radius`` along a straight segment clear of its own map's voxels by r_uav + r_safe."""
+        ``within`` along a straight segment clear of its own map's voxels by r_uav + r_safe."""
         pos = view.state[:3]
         if view.is_leader:
             target = view.goal
         elif leader_parked(view, cfg):
-            target = np.array([goal[0], goal[1], _altitude_target(view)])
+            target = np.array([goal[0], goal[1], view.slot[2]])
         else:
             return False
-        return bool(math.hypot(target[0] - pos[0], target[1] - pos[1]) < cfg.dock_radius
+        return bool(math.hypot(target[0] - pos[0], target[1] - pos[1]) < within
                     and segment_clear(obstacles, pos, target, view.limits.r_uav + view.limits.r_safe + radius))
 
     def _no_progress(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float) -> bool:
@@ -378,8 +383,13 @@ class FusionExpert(OnboardPolicy):
         lim = view.limits
         if blocked is None:
             blocked = self._blocked_raster(view, cfg)
-        path = plan_path(blocked, self.raster, np.clip(view.state[:2], *self._raster_box()),
-                         np.clip(goal_xy, *self._raster_box()), lim.r_uav + lim.r_safe, cfg.astar)
+        start, goal = np.clip(view.state[:2], *self._raster_box()), np.clip(goal_xy, *self._raster_box())
+        path = plan_path(blocked, self.raster, start, goal, lim.r_uav + lim.r_safe, cfg.astar)
+        exploring = t - mem.last_progress_time < cfg.stuck_window       # not yet stuck: look at the unseen
+        if (path is None and exploring and cfg.explore_unknown and cfg.astar_layer == "passable"
+                and view.prior.kind == "none"):
+            path = plan_path(self._blocked_raster(view, cfg, seen=False), self.raster, start, goal,
+                             lim.r_uav + lim.r_safe, cfg.astar)       # no known way: try the unseen ones
         mem.path, mem.path_found, mem.plan_goal = path, path is not None, np.array(goal_xy, dtype=np.float64)
         mem.last_plan_time = t
         mem.replans += 1
@@ -390,24 +400,26 @@ class FusionExpert(OnboardPolicy):
         hi = lo + np.asarray(self.raster.shape) * self.raster.res - 2e-6
         return lo, hi
 
-    def _blocked_raster(self, view, cfg: ExpertConfig) -> np.ndarray:
-        """A UAV's 2D raster: its map's occupied voxels, the world bounds and the prior map (``astar_layer``)."""
+    def _blocked_raster(self, view, cfg: ExpertConfig, seen: bool = True) -> np.ndarray:
+        """A UAV's 2D raster: its map's occupied voxels, the world bounds and the prior map (``astar_layer``);
+        ``seen=False``: a column with a tall enough run of unknown voxels is a way too (``explore_unknown``)."""
         lim = view.limits
         h_b = lim.r_uav + lim.r_safe
         occ_map = view.occupancy
         res = occ_map.resolution
         extent = np.asarray(occ_map.shape) * res
         centres, _ = occ_map.occupied_in_sphere(occ_map.origin + extent / 2, float(np.linalg.norm(extent)) / 2 + res)
+        z_flight = _altitude_target(view, self.memory[view.agent], cfg)
         if cfg.astar_layer == "band":
-            columns = centres[np.abs(centres[:, 2] - _altitude_target(view)) <= h_b + res / 2, :2]
+            columns = centres[np.abs(centres[:, 2] - z_flight) <= h_b + res / 2, :2]
         else:
-            columns = columns_without_gap(occ_map, centres, lim.z_min, lim.z_max, 2 * h_b + res)
+            columns = columns_without_gap(occ_map, centres, lim.z_min, lim.z_max, 2 * h_b + res, seen)
         blocked = np.zeros(self.raster.shape, bool)
         blocked[[0, -1], :] = blocked[:, [0, -1]] = True       # the world's x/y bounds are walls (geofence)
         _mark(blocked, self.raster, columns)
         prior = view.prior
         if prior.kind != "none":
-            limit = _altitude_target(view) - h_b if cfg.astar_layer == "band" else lim.z_max - 2 * h_b
+            limit = z_flight - h_b if cfg.astar_layer == "band" else lim.z_max - 2 * h_b
             cells = np.argwhere(prior.heights > limit)
             _mark(blocked, self.raster, prior.origin + (cells + 0.5) * prior.resolution)
         return blocked
@@ -520,10 +532,21 @@ class FusionExpert(OnboardPolicy):
 
 
 # ---------------------------------------------------------------------- helpers
-def _altitude_target(view) -> float:
-    """The altitude a UAV flies to: the goal's for the leader, its slot's for a follower (``view.slot``, placed by
-    ``formation.formation_slots``: z_ref + dz for version-1 missions, the leader's altitude + dz otherwise)."""
-    return float(view.goal[2] if view.is_leader else view.slot[2])
+def _altitude_target(view, mem: _UAVMemory, cfg: ExpertConfig) -> float:
+    """The altitude a UAV flies to. A follower: its slot's (``view.slot``, placed by ``formation.formation_slots``:
+    z_ref + dz for version-1 missions, the leader's altitude + dz otherwise). The leader: its cruise altitude
+    (where it started) until the goal is near, then a glide path of slope ``glide_slope`` (altitude change per
+    horizontal metre) down or up to the goal's altitude, reached at ``dock_radius`` from the goal."""
+    if not view.is_leader:
+        return float(view.slot[2])
+    if mem.cruise_z is None:
+        mem.cruise_z = float(view.state[2])
+    z_goal = float(view.goal[2])
+    rise = mem.cruise_z - z_goal
+    if rise == 0.0:
+        return z_goal
+    d = math.hypot(view.goal[0] - view.state[0], view.goal[1] - view.state[1])
+    return z_goal + math.copysign(min(abs(rise), cfg.glide_slope * max(0.0, d - cfg.dock_radius)), rise)
 
 
 def _raster_for(view, res: float) -> Raster:
