@@ -668,6 +668,8 @@ class _Params(NamedTuple):
     gamma: float
     eps: float
     minmax: bool
+    drift_x: float
+    drift_y: float
 
 
 @numba.njit(cache=True)
@@ -680,7 +682,7 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, obstacles, radii, movers_pos, mo
     """
     (v_res, w_res, vz, dt, n_steps, r_uav, a_max, v_max, w_max, D_cap, dist_cap, R_uu, goal_x, goal_y, la_x, la_y,
      heading_from_current, lam, progress_reach, vel_target, rot_ref, alpha, kappa, alpha_per_candidate, beta, gamma,
-     eps, minmax) = params
+     eps, minmax, drift_x, drift_y) = params
     w_axis = _axis(w_lo, w_hi, w_res)
     n_w = w_axis.size
     vs, ws = _window_grid(v_lo, v_hi, w_lo, w_hi, v_res, w_res)
@@ -692,8 +694,13 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, obstacles, radii, movers_pos, mo
     paths = np.empty((n_samples, n_steps, 3))
     spheres = np.empty((n_samples, n_blocks + 1, 4))
     reach = np.empty(n_samples)
+    drifting = drift_x != 0.0 or drift_y != 0.0
     for i in range(n_samples):
         _rollout_table(x0, y0, z0, vs[i], vz, dt, yaw[i % n_w], paths[i])
+        if drifting:                                    # the wind carries every rollout along
+            for k in range(n_steps):
+                paths[i, k, 0] += drift_x * (k + 1) * dt
+                paths[i, k, 1] += drift_y * (k + 1) * dt
         reach[i] = _path_spheres(paths[i], x0, y0, z0, spheres[i])
     clearance = np.empty(n_samples)
     admissible = np.zeros(n_samples, dtype=np.bool_)
@@ -706,7 +713,8 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, obstacles, radii, movers_pos, mo
     rho_d = math.hypot(goal_x - x0, goal_y - y0)
     bearing_now = math.atan2(goal_y - y0, goal_x - x0)
     # no rollout gets farther than the fastest one; beyond its reach plus the clearance cap nothing counts
-    far = dt * n_steps * math.sqrt(v_hi * v_hi + vz * vz) + max(D_cap, v_hi * v_hi / (2.0 * a_max)) + r_uav
+    far = (dt * n_steps * (math.sqrt(v_hi * v_hi + vz * vz) + math.hypot(drift_x, drift_y))
+           + max(D_cap, v_hi * v_hi / (2.0 * a_max)) + r_uav)
     obstacles, rads, lows = _nearby(obstacles, radii, x0, y0, z0, far, r_uav)
     d_brake = vs * vs / (2.0 * a_max)
     caps = np.maximum(D_cap, d_brake)
@@ -811,7 +819,7 @@ def _rotation_weight(cfg: DWAConfig, clearance_now: float, prev_alignment: float
 def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle_radius, *,
              vz_cmd: float = 0.0, lookahead=None, clearance_now: float = math.inf, movers_pos=None,
              movers_vel=None, v_ref: float | None = None, v_cap: float | None = None,
-             prev_alignment: float | None = None) -> DWAResult:
+             prev_alignment: float | None = None, drift=None) -> DWAResult:
     """One DWA planning cycle: the best admissible (v, w) of the dynamic window (spec (b), (c)).
 
     state: (7,) row (x, y, z, psi, v, w, vz). goal, lookahead: (2,) or (3,); only x, y are used;
@@ -825,6 +833,7 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
     v_ref: follower speed matching of spec (g2), vel = 1 - |v - v_ref| / v_max (overrides the
     approach speed profile). v_cap: speed cap (leader cap, deadlock yield).
     prev_alignment: c of the previous cycle's choice (E10 per_step, E11 alignment; None -> 1).
+    drift: (2,) horizontal velocity (m/s) added to every rollout, e.g. a wind estimate (None: still air).
     If no sample is admissible, brakes: v = v_lo (= max(0, v0 - a_max dt) for v_min = 0), w = w0.
     """
     try:
@@ -847,6 +856,12 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
         raise ValueError(f"prev_alignment={prev_alignment!r}: expected a cosine in [-1, 1]")
     if v_ref is not None and not 0.0 <= _finite("v_ref", v_ref) <= limits.v_max:
         raise ValueError(f"v_ref={v_ref!r}: expected a speed in [0, UAVLimits.v_max={limits.v_max:g}]")
+    drift_x = drift_y = 0.0
+    if drift is not None:
+        d = np.asarray(drift, dtype=np.float64)
+        if d.shape != (2,) or not np.all(np.isfinite(d)):
+            raise ValueError(f"drift={drift!r}: expected a finite (2,) horizontal velocity in m/s")
+        drift_x, drift_y = float(d[0]), float(d[1])
     n_steps = round(cfg.T_p / limits.dt)
     if n_steps < 1:
         raise ValueError(f"DWAConfig.T_p={cfg.T_p!r} is shorter than one step (UAVLimits.dt={limits.dt!r})")
@@ -875,7 +890,8 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
                      goal_x, goal_y, la_x, la_y, cfg.heading_ref == "current", float(lam), float(reach),
                      float(vel_target), float(w0 if cfg.rotation_mode == "delta" else 0.0), float(alpha),
                      float(cfg.kappa), per_candidate, float(cfg.beta), float(cfg.gamma),
-                     float(_rotation_weight(cfg, clearance_now, prev_alignment)), cfg.norm == "minmax")
+                     float(_rotation_weight(cfg, clearance_now, prev_alignment)), cfg.norm == "minmax",
+                     drift_x, drift_y)
 
     def run(v_lo_, v_hi_, w_lo_, w_hi_, exact_clearance):
         return _plan_kernel(state, v_lo_, v_hi_, w_lo_, w_hi_, obstacles, radii, movers_pos, movers_vel, params,

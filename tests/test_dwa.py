@@ -571,3 +571,23 @@ def test_closed_loop_e1_classic_with_path_lookahead(name):
     k, length, sign_changes, final = fly_e1(cfg, lim, grid_astar(r_block=0.2))
     assert math.dist(final[:2], E1_GOAL[:2]) < cfg.r_goal and k < 5000
     assert length < 20.0
+
+
+def test_drift_carries_the_rollouts():
+    """``drift`` (a wind estimate) moves every rollout by drift * t: an obstacle 1 m behind a UAV at rest is
+    harmless in still air, but a 0.5 m/s drift toward it makes every sample that cannot fly away inadmissible;
+    drift=None and a zero drift are the same plan bit for bit."""
+    cfg = DWAConfig.ablation("DWA")
+    s = state_row(v=0.0)
+    behind = np.array([[-1.0, 0.0, 3.0]])
+    still = dwa_plan(s, LIM, cfg, (5.0, 0.0), behind, 0.1)
+    zero = dwa_plan(s, LIM, cfg, (5.0, 0.0), behind, 0.1, drift=(0.0, 0.0))
+    assert (still.v, still.w, still.n_admissible) == (zero.v, zero.w, zero.n_admissible)
+    assert np.array_equal(still.candidates.clearance, zero.candidates.clearance)
+    pushed = dwa_plan(s, LIM, cfg, (5.0, 0.0), behind, 0.1, drift=(-0.5, 0.0))
+    assert pushed.n_admissible < still.n_admissible
+    cand = pushed.candidates
+    rest = np.flatnonzero((cand.v == 0.0) & (cand.w == 0.0))
+    assert rest.size == 1 and not cand.admissible[rest[0]]          # hovering drifts 1.5 m into it
+    with pytest.raises(ValueError, match="drift"):
+        dwa_plan(s, LIM, cfg, (5.0, 0.0), behind, 0.1, drift=(math.nan, 0.0))

@@ -24,11 +24,11 @@ HEIGHTMAP_PRIOR = EnvConfig().replace(episode=EnvConfig().episode.replace(prior_
 
 
 def scenario(obstacles=(), start=(4.0, 10.0, 3.0), goal=(16.0, 10.0, 3.0), hi=(30.0, 20.0, 12.0), n_uavs=3,
-             formation="triangle", heading=0.0):
+             formation="triangle", heading=0.0, slot_altitude="z_ref"):
     return Scenario(name="expert-test", version=1, seed=None, bounds_lo=(0.0, 0.0, 0.0), bounds_hi=hi,
                     resolution=0.2, obstacles=tuple(obstacles),
                     mission=Mission(start=start, goal=goal, start_heading=heading, formation=formation, spacing=2.0,
-                                    n_uavs=n_uavs))
+                                    n_uavs=n_uavs, slot_altitude=slot_altitude))
 
 
 def wall_across(x, y_hi, z_ranges):
@@ -36,9 +36,9 @@ def wall_across(x, y_hi, z_ranges):
     return [Box((x, -1.0, lo), (x + 0.4, y_hi + 1.0, hi)) for lo, hi in z_ranges]
 
 
-def fly(policy, scn, steps, config=None, seed=0):
+def fly(policy, scn, steps, config=None, seed=0, disturbance=None):
     """Fly one episode; returns the env, the last infos and the per-step leader diagnostics and states."""
-    penv = parallel_env(scenario=scn, max_cycles=steps, config=config)
+    penv = parallel_env(scenario=scn, max_cycles=steps, config=config, disturbance=disturbance)
     obs, infos = penv.reset(seed=seed)
     policy.reset(penv, seed=seed)
     diagnostics, states = [], []
@@ -203,7 +203,8 @@ def test_parked_leader_turns_until_every_slot_is_free():
             return math.hypot(c[0] + 2.0, c[1] - 2.0) < 1.0 + r
 
     offsets = np.array([[0.0, 0.0, 0.0], [-2.0, 2.0, 0.0], [-2.0, -2.0, 0.0]])   # two rear slots
-    view = SimpleNamespace(limits=UAVLimits(), occupancy=Map(), offsets=offsets, z_ref=3.0,
+    view = SimpleNamespace(limits=UAVLimits(), occupancy=Map(), offsets=offsets, z_ref=3.0, slot_altitude="z_ref",
+                           goal=np.array([0.0, 0.0, 3.0]),
                            state=np.array([0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0]),
                            bounds_lo=np.array([-10.0, -10.0, 0.0]), bounds_hi=np.array([10.0, 10.0, 12.0]))
     mem = _UAVMemory()
@@ -303,6 +304,29 @@ def test_leader_discovers_the_enclosure_and_holds():
     settled = states[-30:, 0, :2]
     assert np.ptp(settled, axis=0).max() < 0.1                 # ... and holds there
     assert states[-1, 0, 0] < 10.0                            # never through the wall
+
+
+# ----------------------------------------------------------------------------- goals in 3D, wind
+
+
+def test_formation_reaches_a_goal_above_z_ref():
+    scn = scenario(goal=(14.0, 10.0, 6.0), n_uavs=2, formation="column", slot_altitude="leader")
+    penv, infos, _, states = fly(FusionExpert(), scn, 400)
+    assert infos["uav_0"]["success"] == 1 and not penv.unwrapped.crashed.any()
+    assert abs(states[-1, 0, 2] - 6.0) < 0.5 and abs(states[-1, 1, 2] - states[-1, 0, 2]) < 0.5   # slot: leader z
+
+
+def test_parked_leader_keeps_station_in_a_breeze():
+    """With r_goal too small to end the episode, the arrived leader holds the goal against 0.3 m/s gusts."""
+    never = EnvConfig().replace(episode=EnvConfig().episode.replace(r_goal=1e-6))
+    scn = scenario(goal=(10.0, 10.0, 3.0), n_uavs=1, formation="column")
+    penv, _, diagnostics, states = fly(FusionExpert(), scn, 700, config=never, disturbance="breeze", seed=1)
+    assert not penv.unwrapped.crashed.any() and diagnostics[-1].get("arrived")
+    drift = np.hypot(states[-300:, 0, 0] - 10.0, states[-300:, 0, 1] - 10.0)
+    assert drift.max() < 3.5 and np.median(drift) < 1.0       # what a 20 deg/s unicycle achieves in 0.3 m/s gusts
+    unheld = FusionExpert(ExpertConfig(k_hold=0.0, vane_wind=100.0))   # hovers at v = 0: the gusts carry it off
+    _, _, _, loose = fly(unheld, scn, 700, config=never, disturbance="breeze", seed=1)
+    assert np.median(np.hypot(loose[-300:, 0, 0] - 10.0, loose[-300:, 0, 1] - 10.0)) > 1.5 * np.median(drift)
 
 
 # ----------------------------------------------------------------------------- wall gap (3D vs 2D)

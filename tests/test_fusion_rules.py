@@ -10,8 +10,8 @@ import pytest
 from baselines.dwa import dwa_plan
 from baselines.fusion import ExpertConfig, FusionExpert
 from baselines.fusion.controller import _UAVMemory
-from baselines.fusion.rules import (RULES, Command, Cycle, braking_fallback, dock_turn, emergency_escape,
-                                    reverse_turn)
+from baselines.fusion.rules import (RULES, Command, Cycle, braking_fallback, dock_approach, dock_turn, drift_guard,
+                                    emergency_escape, reverse_turn, station_keep, vertical_separation, wind_estimate)
 from baselines.vfh3d import VFHPlanner
 from uavform_env import EnvConfig, parallel_env
 
@@ -32,24 +32,30 @@ class FakeMap:
         near = self.voxels[np.linalg.norm(self.voxels - pos, axis=1) <= radius]
         return near, np.ones(len(near))
 
+    def occupied_within(self, pos, radius):
+        return len(self.occupied_in_sphere(np.asarray(pos), radius)[0]) > 0
+
 
 def view(state=(0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0), is_leader=True, goal=(10.0, 0.0, 3.0), leader_speed=0.5,
-         voxels=(), alive=()):
+         voxels=(), alive=(), index=0, neighbour_ids=()):
     return SimpleNamespace(state=np.array(state, dtype=np.float64), is_leader=is_leader,
                            goal=np.array(goal, dtype=np.float64), limits=LIM, config=EnvConfig(),
                            leader_state=np.array([0.0, 0.0, 3.0, 0.0, leader_speed, 0.0, 0.0]),
-                           occupancy=FakeMap(voxels), neighbour_alive=np.array(alive, dtype=bool))
+                           occupancy=FakeMap(voxels), neighbour_alive=np.array(alive, dtype=bool), index=index,
+                           neighbour_ids=np.array(neighbour_ids, dtype=np.int64))
 
 
 def cycle(v, mem=None, goal=(10.0, 0.0), lookahead=(10.0, 0.0), heading_goal=(10.0, 0.0), admissible=True,
-          vfh=None, movers=np.zeros((0, 3)), cfg=CFG):
+          vfh=None, movers=np.zeros((0, 3)), cfg=CFG, obstacles=np.zeros((0, 3)), radius=0.0, docking=False):
     return Cycle(view=v, mem=mem or _UAVMemory(), cfg=cfg, goal=np.array(goal), lookahead=np.array(lookahead),
                  heading_goal=np.array(heading_goal), dwa=SimpleNamespace(admissible=admissible), vfh=vfh,
-                 movers_pos=movers, movers_vel=np.zeros_like(movers))
+                 movers_pos=movers, movers_vel=np.zeros_like(movers), obstacles=np.asarray(obstacles, dtype=float),
+                 radii=np.full(len(obstacles), radius), docking=docking)
 
 
 def test_rules_are_named_and_ordered():
-    assert [r.__name__ for r in RULES] == ["braking_fallback", "dock_turn", "reverse_turn", "emergency_escape"]
+    assert [r.__name__ for r in RULES] == ["braking_fallback", "dock_turn", "dock_approach", "reverse_turn",
+                                           "drift_guard", "vertical_separation", "emergency_escape"]
     assert all(r.__doc__ for r in RULES)
 
 
@@ -116,6 +122,92 @@ def test_emergency_escape_moves_away_vertically_unless_into_a_neighbour():
     assert (below.v, below.vz) == (0.0, 0.0)                               # a neighbour below: hold altitude
 
 
+def test_drift_guard_flies_away_from_a_near_obstacle_only_without_an_admissible_sample():
+    near = dict(obstacles=[[0.5, 0.0, 3.0]], radius=0.1)           # 0.1 m clearance, straight ahead
+    cmd = Command(0.0, 0.0, 0.0)
+    drift_guard(cmd, cycle(view(), admissible=True, **near))       # DWA found a way: it stands
+    assert (cmd.v, cmd.w) == (0.0, 0.0)
+    drift_guard(cmd, cycle(view(), admissible=False, **near))      # away is behind: turn, no speed
+    assert (cmd.v, cmd.w) == (0.0, W_MAX)
+    behind = Command(0.0, 0.0, 0.0)
+    mem = _UAVMemory(wind=np.array([-0.2, 0.0]))                   # 0.2 m/s blowing toward the obstacle
+    drift_guard(behind, cycle(view(), mem, admissible=False, obstacles=[[-0.5, 0.0, 3.0]], radius=0.1))
+    assert behind.v == pytest.approx(CFG.guard_speed + 0.2) and behind.w == 0.0
+    far = Command(0.0, 0.0, 0.0)
+    drift_guard(far, cycle(view(), admissible=False, obstacles=[[-2.0, 0.0, 3.0]], radius=0.1))
+    assert far.v == 0.0                                            # 1.6 m clearance: brake as before
+    above = Command(0.0, 0.0, 0.0)
+    drift_guard(above, cycle(view(), admissible=False, obstacles=[[0.1, 0.0, 3.5]], radius=0.1))
+    assert above.v == 0.0                                          # above: the emergency escape's case
+
+
+def test_vertical_separation_moves_the_higher_uav_up_and_the_lower_down():
+    two = dict(alive=[True], neighbour_ids=[1])
+    cmd = Command(0.3, 0.0, 0.0)
+    vertical_separation(cmd, cycle(view(**two), movers=np.array([[2.0, 0.0, 3.0]])))   # 2 m away: nothing
+    assert cmd.vz == 0.0
+    vertical_separation(cmd, cycle(view(**two), movers=np.array([[0.6, 0.0, 2.9]])))   # it is lower: climb
+    assert (cmd.v, cmd.vz) == (0.3, LIM.vz_max)
+    vertical_separation(cmd, cycle(view(**two), movers=np.array([[0.6, 0.0, 3.0]])))   # level: index 0 descends
+    assert cmd.vz == -LIM.vz_max
+    blocked = Command(0.3, 0.0, 0.0)
+    vertical_separation(blocked, cycle(view(voxels=[[0.0, 0.0, 2.5]], **two), movers=np.array([[0.6, 0.0, 3.0]])))
+    assert blocked.vz == LIM.vz_max                                # a voxel below: the other way
+    floor = Command(0.3, 0.0, 0.0)
+    low = view(state=(0.0, 0.0, 0.6, 0.0, 0.0, 0.0, 0.0), **two)
+    vertical_separation(floor, cycle(low, movers=np.array([[0.6, 0.0, 0.6]])))
+    assert floor.vz == LIM.vz_max                                  # at the band's floor: up
+
+
+def test_station_keep_flies_back_and_against_the_wind_and_rests_in_still_air():
+    mem = _UAVMemory()
+    held = station_keep(view(), mem, CFG, np.array([0.1, 0.0]), 0.5)      # at the point, still air: turn to heading
+    assert (held.v, held.w) == (0.0, W_MAX)
+    behind = station_keep(view(), mem, CFG, np.array([-1.0, 0.0]), 0.0)   # pushed 1 m past: turn, no speed
+    assert (behind.v, behind.w) == (0.0, W_MAX)
+    mem.wind = np.array([-0.3, 0.0])                                      # a 0.3 m/s headwind
+    ahead = station_keep(view(), mem, CFG, np.array([1.0, 0.0]), 0.0)
+    assert ahead.v == pytest.approx(CFG.k_hold * 1.0 + 0.3) and ahead.w == 0.0
+    on_point = station_keep(view(), mem, CFG, np.array([0.0, 0.0]), 0.0)  # on the point: fly against the wind
+    assert on_point.v == pytest.approx(0.3) and on_point.w == 0.0
+    mem.wind = np.array([0.0, 0.3])                                       # crosswind from the right: nose into it
+    cross = station_keep(view(), mem, CFG, np.array([0.0, 0.0]), 0.0)
+    assert cross.v == pytest.approx(0.0, abs=1e-12) and cross.w == -W_MAX
+
+
+def test_dock_approach_flies_the_home_in_law_only_when_docking():
+    tail = np.array([0.2, 0.0])                                           # 0.2 m/s from behind
+    cmd = Command(0.6, 0.2, 0.1)
+    dock_approach(cmd, cycle(view(goal=(2.0, 0.0, 3.0)), _UAVMemory(wind=tail), docking=False))
+    assert (cmd.v, cmd.w, cmd.vz) == (0.6, 0.2, 0.1)                      # not docking: DWA's command stands
+    dock_approach(cmd, cycle(view(goal=(2.0, 0.0, 3.0)), docking=True))   # still air: DWA's command stands
+    assert (cmd.v, cmd.w, cmd.vz) == (0.6, 0.2, 0.1)
+    dock_approach(cmd, cycle(view(goal=(2.0, 0.0, 3.0)), _UAVMemory(wind=tail), docking=True))   # 2 m ahead
+    assert (cmd.v, cmd.w, cmd.vz) == (pytest.approx(CFG.k_hold * 2.0), 0.0, 0.1)
+    abeam = Command(0.6, 0.0, 0.0)
+    dock_approach(abeam, cycle(view(goal=(0.0, 2.0, 3.0)), _UAVMemory(wind=tail), docking=True))  # 90 deg left
+    assert (abeam.v, abeam.w, abeam.turning) == (0.0, W_MAX, True)
+    near = Command(0.6, 0.0, 0.0)                                         # 30 deg off, 1 m: pure-pursuit cap
+    dock_approach(near, cycle(view(goal=(math.cos(0.5236), math.sin(0.5236), 3.0)), _UAVMemory(wind=tail),
+                              docking=True))
+    assert near.v == pytest.approx(min(CFG.k_hold * math.cos(0.5236), W_MAX * 1.0 / (2 * math.sin(0.5236))))
+
+
+def test_wind_estimate_is_the_drift_the_commands_do_not_explain():
+    mem = _UAVMemory()
+    wind_estimate(view(state=(0.0, 0.0, 3.0, 0.0, 0.5, 0.0, 0.0)), mem, CFG)
+    assert mem.wind.tolist() == [0.0, 0.0]                                  # no previous pose yet
+    dt = LIM.dt
+    # 0.5 m/s along x commanded; it moved 0.5 dt + 0.2 dt along x and 0.1 dt along y
+    wind_estimate(view(state=(0.7 * dt, 0.1 * dt, 3.0, 0.0, 0.5, 0.0, 0.0)), mem, CFG)
+    gain = min(1.0, dt / CFG.wind_tau)
+    assert mem.wind == pytest.approx([0.2 * gain, 0.1 * gain])
+    still = _UAVMemory()
+    for k in range(3):                                                      # exactly the model: no wind
+        wind_estimate(view(state=(0.5 * k * dt, 0.0, 3.0, 0.0, 0.5, 0.0, 0.0)), still, CFG)
+    assert still.wind == pytest.approx([0.0, 0.0], abs=1e-12)
+
+
 def _flight(policy, steps=25):
     penv = parallel_env(scenario="forest", n_uavs=3, formation="triangle", max_cycles=steps)
     obs, _ = penv.reset(seed=4)
@@ -147,7 +239,8 @@ def test_injected_planners_are_the_ones_called():
     def frozen_dwa(state, limits, cfg, goal, *args, **kwargs):
         return dwa_plan(state, limits, cfg, goal, *args, **{**kwargs, "v_cap": 0.0})
 
-    assert np.all(_flight(FusionExpert(dwa=frozen_dwa), 10)[:, :, 0] == -1.0)   # speed action -1: v = 0
+    frozen = FusionExpert(ExpertConfig(dock_approach=False), dwa=frozen_dwa)   # (docking flies without DWA)
+    assert np.all(_flight(frozen, 10)[:, :, 0] == -1.0)                 # speed action -1: v = 0
 
 
 def test_planners_must_be_callable():

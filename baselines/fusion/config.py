@@ -98,6 +98,19 @@ class ExpertConfig(Config):
                        neighbour did), is left to DWA, whose admissibility keeps the clearance and the separation:
                        the spec's stop-and-climb away never ends beside a floor-to-ceiling wall (a follower froze
                        at a corridor's mouth), nor beside a parked leader [X]
+    dock_approach, approach_radius  the leader within ``approach_radius`` of its goal, along a segment clear of its
+                       own map by r_uav + r_safe, flies ``rules.home_in`` (turn toward the goal, speed k_hold x
+                       distance + headwind, pure-pursuit cap) instead of DWA's choice: in gusts DWA flew past the
+                       goal and orbited it 1-2 m away. Followers dock with DWA, which keeps them apart [X]
+    hold_radius, k_hold, vane_wind  station keeping (``rules.station_keep``): a holding UAV (the arrived leader at
+                       its goal, a UAV with no way to its goal) flies the air velocity k_hold (p_hold - p) - wind
+                       (nose toward it, speed |.| cos(bearing error)); within ``hold_radius`` with that below
+                       ``vane_wind`` it stops and turns to its park heading. A UAV hovering at v = 0 otherwise
+                       drifts with the wind into whatever is downwind [X]
+    wind_tau           time constant (s) of the low-pass filter that estimates the wind from the UAV's own drift
+                       (``rules.wind_estimate``: observed minus commanded motion) [X]
+    wind_drift         DWA's rollouts drift with the estimated wind (``dwa_plan(drift=...)``): a sample that holds
+                       still while the wind carries the UAV into an obstacle is inadmissible [X]
     park_turn          the parked leader turns in place (v = 0) to the heading nearest its own whose follower
                        slots are all free in its own map and inside the world bounds: parked at the goal, it
                        can otherwise leave a slot inside an obstacle, and the formation can never close [X]
@@ -148,6 +161,19 @@ class ExpertConfig(Config):
     k_gap: float = 1.0
     gap_speed: float = 0.3
     climb_target_limit: bool = True
+    hold_radius: float = 0.25
+    k_hold: float = 0.5
+    wind_tau: float = 1.0
+    wind_drift: bool = True
+    explore_unknown: bool = True
+    dock_approach: bool = True
+    vane_wind: float = 0.1
+    approach_radius: float = 3.0
+    glide_slope: float = 0.5
+    wind_margin: float = 1.0
+    separation_margin: float = 0.3
+    guard_clearance: float = 0.4
+    guard_speed: float = 0.3
     park_turn: bool = True
     lateral_emergency_to_dwa: bool = True
 
@@ -155,7 +181,8 @@ class ExpertConfig(Config):
         "dwa": instance_of(DWAConfig), "vfh": instance_of(VFHConfig), "astar": instance_of(AStarConfig),
         **{name: boolean for name in ("use_vfh", "neighbour_prediction", "shape_switching", "climb_target_limit",
                                       "park_turn", "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap",
-                                      "rejoin_hidden", "final_approach_free")},
+                                      "rejoin_hidden", "final_approach_free", "wind_drift", "dock_approach",
+                                      "explore_unknown")},
         "astar_layer": one_of(ASTAR_LAYERS),
         "rejoin": one_of(REJOIN_MODES),
         "dwa_map_level": integer(0, 4),
@@ -164,7 +191,10 @@ class ExpertConfig(Config):
         **{name: in_range(0.0) for name in ("replan_check_period", "k_f", "k_h", "k_z", "T_stuck", "climb_lookahead",
                                             "column_hold", "vfh_neighbour_radius", "rejoin_distance", "dock_radius",
                                             "trail_spacing", "arrive_radius", "stuck_window", "gap_lookahead",
-                                            "gap_depth", "gap_margin", "k_gap", "gap_speed", "leader_stopped_speed")},
+                                            "gap_depth", "gap_margin", "k_gap", "gap_speed", "leader_stopped_speed",
+                                            "hold_radius", "k_hold", "separation_margin", "glide_slope", "wind_margin", "vane_wind", "approach_radius",
+                                            "guard_clearance", "guard_speed")},
+        "wind_tau": in_range(0.0, lo_open=True),
         "leader_speed_cap": in_range(0.0, 1.0, lo_open=True),
         "yield_factor": in_range(0.0, 1.0),
         "min_leader_scale": in_range(0.0, 1.0),

@@ -21,7 +21,7 @@ from typing import NamedTuple
 import numpy as np
 
 from uavform_env.dynamics import PSI, V, VZ, W, commands_to_actions, wrap
-from uavform_env.formation import slot_positions
+from uavform_env.formation import formation_slots, slot_positions
 from uavform_env.world import grid_frame
 
 from ..astar import GlobalPath, Raster, inflate, plan_path, replan_trigger
@@ -31,7 +31,7 @@ from ..vfh3d import VFHPlanner, VFHState
 from .config import ExpertConfig
 from .kernels import (closest_approach, columns_without_gap, gap_altitude_kernel, in_sphere, open_level_way,
                       segment_clear, surface_clearance)
-from .rules import RULES, Command, Cycle, bearing_error, clamp, leader_parked
+from .rules import RULES, Command, Cycle, bearing_error, clamp, leader_parked, station_keep, wind_estimate
 
 LEVEL, CLIMB, BLOCKED = "level", "climb", "blocked"
 
@@ -61,6 +61,10 @@ class _UAVMemory:
     park_psi: float | None = None
     best_goal_distance: float = math.inf
     last_progress_time: float = 0.0
+    wind: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    prev_pose: tuple | None = None
+    hold_xy: np.ndarray | None = None
+    cruise_z: float | None = None
 
 
 class _Local(NamedTuple):
@@ -143,8 +147,9 @@ class FusionExpert(OnboardPolicy):
         if view.crashed:
             return np.zeros(3)
         mem = self.memory[view.agent]
+        wind_estimate(view, mem, cfg)
         t = view.step * view.limits.dt
-        z_slot = view.z_ref + view.slot_offset[2]
+        z_slot = _altitude_target(view, mem, cfg)
         if view.is_leader and self._arrived(view, mem, cfg):
             return self._park(view, mem, cfg, z_slot)
         local = self._local(view, cfg)
@@ -152,11 +157,15 @@ class FusionExpert(OnboardPolicy):
         if target is None:                                      # unreachable: hold position safely
             self.diagnostics[view.agent] = {"mode": mem.mode, "stuck": True, "unreachable": True,
                                             "replans": mem.replans}
-            return np.array([0.0, 0.0, self._hold_altitude(view, cfg, z_slot)])
+            if mem.hold_xy is None:
+                mem.hold_xy = view.state[:2].copy()
+            cmd = station_keep(view, mem, cfg, mem.hold_xy, float(view.state[PSI]))
+            return np.array([cmd.v, cmd.w, self._hold_altitude(view, cfg, z_slot)])
+        mem.hold_xy = None
         vertical = self._vertical_decision(view, mem, cfg, target, local, z_slot)
-        cmd, res, clearance_now = self._dwa(view, mem, cfg, target, vertical, local)
+        cmd, res, clearance_now, obstacles, radii, docking = self._dwa(view, mem, cfg, target, vertical, local)
         cycle = Cycle(view, mem, cfg, target.goal, target.lookahead, vertical.heading_goal, res, vertical.vfh,
-                      local.movers_pos, local.movers_vel)
+                      local.movers_pos, local.movers_vel, obstacles, radii, docking)
         for rule in RULES:
             rule(cmd, cycle)
         self.diagnostics[view.agent] = {
@@ -183,13 +192,12 @@ class FusionExpert(OnboardPolicy):
         return mem.arrived
 
     def _park(self, view, mem: _UAVMemory, cfg: ExpertConfig, z_slot: float) -> np.ndarray:
-        """The arrived leader holds at the goal, turning in place to a heading with free slots (``park_turn``)."""
+        """The arrived leader holds the goal against the wind (``rules.station_keep``), turning in place to a heading
+        with free slots (``park_turn``)."""
         self.diagnostics[view.agent] = {"mode": mem.mode, "stuck": False, "arrived": True, "replans": mem.replans}
-        w_c = 0.0
-        if cfg.park_turn:
-            lim = view.limits
-            w_c = clamp(wrap(_park_heading(view, mem, cfg) - view.state[PSI]), -lim.w_max, lim.w_max)
-        return np.array([0.0, w_c, self._hold_altitude(view, cfg, z_slot)])
+        heading = _park_heading(view, mem, cfg) if cfg.park_turn else float(view.state[PSI])
+        cmd = station_keep(view, mem, cfg, view.goal[:2], heading)
+        return np.array([cmd.v, cmd.w, self._hold_altitude(view, cfg, z_slot)])
 
     def _local(self, view, cfg: ExpertConfig) -> _Local:
         """The occupied voxels within DWA's reach (octree level ``dwa_map_level``) and the neighbours (g6)."""
@@ -266,28 +274,33 @@ class FusionExpert(OnboardPolicy):
 
     # ------------------------------------------------------------------ stage 3: DWA
     def _dwa(self, view, mem: _UAVMemory, cfg: ExpertConfig, target: _Target, vertical: _Vertical, local: _Local):
-        """(command, DWA result, current clearance): DWA toward the heading goal at the vertical decision's climb
-        rate, with the world's bounds as walls; if nothing is admissible while climbing, holding altitude is tried."""
+        """(command, DWA result, current clearance, DWA's obstacle points and radii, whether on the final approach):
+        DWA toward the heading goal at the vertical decision's climb
+        rate, with the world's bounds as walls and the estimated wind carrying the rollouts (``wind_drift``); if nothing is admissible while climbing, holding altitude is tried."""
         lim = view.limits
         s = view.state
         pos = s[:3]
         obstacles, radius = vertical.obstacles, vertical.radius
-        clearance_now = surface_clearance(pos, obstacles, radius, lim.r_uav)
+        clearance_now = surface_clearance(pos, obstacles, radius, lim.r_uav)   # (without the wind margin)
         dwa_cfg = cfg.dwa
-        if cfg.final_approach_free and self._final_approach(view, target.goal, obstacles, radius, cfg):
+        if cfg.final_approach_free and self._final_approach(view, target.goal, obstacles, radius, cfg,
+                                                            cfg.dock_radius):
             dwa_cfg = replace(dwa_cfg, beta=0.0)
+        docking = view.is_leader and self._final_approach(view, target.goal, obstacles, radius, cfg,
+                                                          cfg.approach_radius)
         fence = _geofence(pos, local.reach, view.bounds_lo, view.bounds_hi, cfg.geofence_spacing)
-        radii = np.full(len(obstacles), radius)
+        radii = np.full(len(obstacles), radius + cfg.wind_margin * math.hypot(mem.wind[0], mem.wind[1]))
         if len(fence):
             obstacles = np.concatenate([obstacles, fence])
             radii = np.concatenate([radii, np.zeros(len(fence))])
         alive_pos, alive_vel = local.movers_pos[view.neighbour_alive], local.movers_vel[view.neighbour_alive]
+        drift = mem.wind if cfg.wind_drift and mem.wind.any() else None    # the rollouts drift with the wind
 
         def plan(vz):
             return self.dwa(s, lim, dwa_cfg, vertical.heading_goal, obstacles, radii, vz_cmd=vz,
                             lookahead=target.lookahead, clearance_now=clearance_now, movers_pos=alive_pos,
                             movers_vel=alive_vel, v_ref=target.v_ref, v_cap=vertical.v_cap,
-                            prev_alignment=mem.prev_alignment)
+                            prev_alignment=mem.prev_alignment, drift=drift)
 
         vz = vertical.vz
         res = plan(vz)
@@ -296,21 +309,21 @@ class FusionExpert(OnboardPolicy):
             if held.admissible:
                 res, vz = held, 0.0
         mem.prev_alignment = res.alignment if math.isfinite(res.alignment) else 1.0
-        return Command(res.v, res.w, vz), res, clearance_now
+        return Command(res.v, res.w, vz), res, clearance_now, obstacles, radii, docking
 
     # ------------------------------------------------------------------ helpers of the stages
     @staticmethod
-    def _final_approach(view, goal, obstacles, radius: float, cfg: ExpertConfig) -> bool:
+    def _final_approach(view, goal, obstacles, radius: float, cfg: ExpertConfig, within: float) -> bool:
         """Whether the UAV closes on a fixed target (the leader on its goal, a follower on a parked slot) within
-        ``dock_radius`` along a straight segment clear of its own map's voxels by r_uav + r_safe."""
+        ``within`` along a straight segment clear of its own map's voxels by r_uav + r_safe."""
         pos = view.state[:3]
         if view.is_leader:
             target = view.goal
         elif leader_parked(view, cfg):
-            target = np.array([goal[0], goal[1], view.z_ref + view.slot_offset[2]])
+            target = np.array([goal[0], goal[1], view.slot[2]])
         else:
             return False
-        return bool(math.hypot(target[0] - pos[0], target[1] - pos[1]) < cfg.dock_radius
+        return bool(math.hypot(target[0] - pos[0], target[1] - pos[1]) < within
                     and segment_clear(obstacles, pos, target, view.limits.r_uav + view.limits.r_safe + radius))
 
     def _no_progress(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float) -> bool:
@@ -370,8 +383,13 @@ class FusionExpert(OnboardPolicy):
         lim = view.limits
         if blocked is None:
             blocked = self._blocked_raster(view, cfg)
-        path = plan_path(blocked, self.raster, np.clip(view.state[:2], *self._raster_box()),
-                         np.clip(goal_xy, *self._raster_box()), lim.r_uav + lim.r_safe, cfg.astar)
+        start, goal = np.clip(view.state[:2], *self._raster_box()), np.clip(goal_xy, *self._raster_box())
+        path = plan_path(blocked, self.raster, start, goal, lim.r_uav + lim.r_safe, cfg.astar)
+        exploring = t - mem.last_progress_time < cfg.stuck_window       # not yet stuck: look at the unseen
+        if (path is None and exploring and cfg.explore_unknown and cfg.astar_layer == "passable"
+                and view.prior.kind == "none"):
+            path = plan_path(self._blocked_raster(view, cfg, seen=False), self.raster, start, goal,
+                             lim.r_uav + lim.r_safe, cfg.astar)       # no known way: try the unseen ones
         mem.path, mem.path_found, mem.plan_goal = path, path is not None, np.array(goal_xy, dtype=np.float64)
         mem.last_plan_time = t
         mem.replans += 1
@@ -382,24 +400,26 @@ class FusionExpert(OnboardPolicy):
         hi = lo + np.asarray(self.raster.shape) * self.raster.res - 2e-6
         return lo, hi
 
-    def _blocked_raster(self, view, cfg: ExpertConfig) -> np.ndarray:
-        """A UAV's 2D raster: its map's occupied voxels, the world bounds and the prior map (``astar_layer``)."""
+    def _blocked_raster(self, view, cfg: ExpertConfig, seen: bool = True) -> np.ndarray:
+        """A UAV's 2D raster: its map's occupied voxels, the world bounds and the prior map (``astar_layer``);
+        ``seen=False``: a column with a tall enough run of unknown voxels is a way too (``explore_unknown``)."""
         lim = view.limits
         h_b = lim.r_uav + lim.r_safe
         occ_map = view.occupancy
         res = occ_map.resolution
         extent = np.asarray(occ_map.shape) * res
         centres, _ = occ_map.occupied_in_sphere(occ_map.origin + extent / 2, float(np.linalg.norm(extent)) / 2 + res)
+        z_flight = _altitude_target(view, self.memory[view.agent], cfg)
         if cfg.astar_layer == "band":
-            columns = centres[np.abs(centres[:, 2] - view.z_ref) <= h_b + res / 2, :2]
+            columns = centres[np.abs(centres[:, 2] - z_flight) <= h_b + res / 2, :2]
         else:
-            columns = columns_without_gap(occ_map, centres, lim.z_min, lim.z_max, 2 * h_b + res)
+            columns = columns_without_gap(occ_map, centres, lim.z_min, lim.z_max, 2 * h_b + res, seen)
         blocked = np.zeros(self.raster.shape, bool)
         blocked[[0, -1], :] = blocked[:, [0, -1]] = True       # the world's x/y bounds are walls (geofence)
         _mark(blocked, self.raster, columns)
         prior = view.prior
         if prior.kind != "none":
-            limit = view.z_ref - h_b if cfg.astar_layer == "band" else lim.z_max - 2 * h_b
+            limit = z_flight - h_b if cfg.astar_layer == "band" else lim.z_max - 2 * h_b
             cells = np.argwhere(prior.heights > limit)
             _mark(blocked, self.raster, prior.origin + (cells + 0.5) * prior.resolution)
         return blocked
@@ -512,6 +532,23 @@ class FusionExpert(OnboardPolicy):
 
 
 # ---------------------------------------------------------------------- helpers
+def _altitude_target(view, mem: _UAVMemory, cfg: ExpertConfig) -> float:
+    """The altitude a UAV flies to. A follower: its slot's (``view.slot``, placed by ``formation.formation_slots``:
+    z_ref + dz for version-1 missions, the leader's altitude + dz otherwise). The leader: its cruise altitude
+    (where it started) until the goal is near, then a glide path of slope ``glide_slope`` (altitude change per
+    horizontal metre) down or up to the goal's altitude, reached at ``dock_radius`` from the goal."""
+    if not view.is_leader:
+        return float(view.slot[2])
+    if mem.cruise_z is None:
+        mem.cruise_z = float(view.state[2])
+    z_goal = float(view.goal[2])
+    rise = mem.cruise_z - z_goal
+    if rise == 0.0:
+        return z_goal
+    d = math.hypot(view.goal[0] - view.state[0], view.goal[1] - view.state[1])
+    return z_goal + math.copysign(min(abs(rise), cfg.glide_slope * max(0.0, d - cfg.dock_radius)), rise)
+
+
 def _raster_for(view, res: float) -> Raster:
     origin, shape = grid_frame(view.bounds_lo[:2], view.bounds_hi[:2], res)
     return Raster(tuple(origin), res, shape)
@@ -625,7 +662,8 @@ def _predict_unicycle(state, horizon: float, dt: float):
 
 def _slots_free(view, psi: float, margin: float) -> bool:
     """Whether every follower slot of a leader at its position with heading ``psi`` is free in its own map."""
-    for slot in slot_positions(view.state[:2], psi, view.offsets[1:], view.z_ref):
+    at_goal = np.array([view.state[0], view.state[1], view.goal[2]])
+    for slot in formation_slots(at_goal, psi, view.offsets[1:], view.z_ref, view.slot_altitude):
         if np.any(slot[:2] < view.bounds_lo[:2] + margin) or np.any(slot[:2] > view.bounds_hi[:2] - margin):
             return False
         if view.occupancy.occupied_within(slot, margin):

@@ -11,9 +11,11 @@ from uavform_env.dynamics import wrap
 from uavform_env.occupancy import voxel_logodds
 
 
-def columns_without_gap(occ_map, centres: np.ndarray, z_min: float, z_max: float, gap: float) -> np.ndarray:
+def columns_without_gap(occ_map, centres: np.ndarray, z_min: float, z_max: float, gap: float,
+                        seen: bool = True) -> np.ndarray:
     """x, y of the map columns holding an occupied voxel in [z_min, z_max] but no way through there: a run
-    of non-occupied voxels of height >= ``gap`` of which at least one voxel is known free.
+    of non-occupied voxels of height >= ``gap`` of which at least one voxel is known free (``seen=False``:
+    unknown voxels alone make a way too, the optimistic raster an explorer falls back on).
 
     A run of unknown voxels alone is not a way: a wall whose top the UAV has not seen is a wall (that
     optimism sent followers along a corridor's wall into the world's corners); one ray through the
@@ -27,14 +29,15 @@ def columns_without_gap(occ_map, centres: np.ndarray, z_min: float, z_max: float
     l_occ = np.float32(occ_map.cfg.logodds(occ_map.cfg.p_occ))        # the map's float32 occupancy threshold
     out = np.empty((len(centres), 2))
     n = _gapless_columns_kernel(occ_map.arrays(), np.ascontiguousarray(centres, dtype=np.float64), origin, res,
-                                z_min - res, z_max + res, k_lo, k_hi, l_occ, gap, out)
+                                z_min - res, z_max + res, k_lo, k_hi, l_occ, gap, seen, out)
     return out[:n]
 
 
 @numba.njit(cache=True)
-def _gapless_columns_kernel(leaves, centres, origin, res, z_lo, z_hi, k_lo, k_hi, l_occ, gap, out):
+def _gapless_columns_kernel(leaves, centres, origin, res, z_lo, z_hi, k_lo, k_hi, l_occ, gap, need_seen, out):
     """Write into ``out`` the x, y of each column (once) of a voxel of ``centres`` within [z_lo, z_hi] whose
-    layers k_lo..k_hi-1 hold no run of non-occupied voxels >= ``gap`` with a known-free voxel; return the count."""
+    layers k_lo..k_hi-1 hold no run of non-occupied voxels >= ``gap`` (with a known-free voxel if ``need_seen``);
+    return the count."""
     visited = np.zeros((leaves.shape[0], leaves.shape[1]), dtype=np.bool_)
     n = 0
     for m in range(centres.shape[0]):
@@ -52,7 +55,7 @@ def _gapless_columns_kernel(leaves, centres, origin, res, z_lo, z_hi, k_lo, k_hi
                 length, seen = 0, False
                 continue
             length += 1
-            seen = seen or value < l_occ
+            seen = seen or value < l_occ or not need_seen
             if seen and length * res >= gap - 1e-9:
                 way = True
                 break

@@ -14,7 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from uavform_env.dynamics import PSI, V, wrap
+from uavform_env.dynamics import PSI, V, W, integrate, wrap
 
 from .kernels import closest_approach
 
@@ -35,7 +35,9 @@ class Command:
 class Cycle(NamedTuple):
     """What the rules read of one UAV's cycle: its view, memory and config, the target stage's goal
     (DWA's goal) and lookahead point, the heading goal DWA steered for, DWA's and 3D VFH+'s results
-    (``vfh`` None in planar mode) and the neighbours as predicted movers (g6)."""
+    (``vfh`` None in planar mode), the neighbours as predicted movers (g6) and DWA's obstacle points
+    (own-map voxels and the world's bounds) with their radii, and whether the UAV is on its final approach to
+    a fixed target (``docking``)."""
 
     view: object
     mem: object
@@ -47,6 +49,9 @@ class Cycle(NamedTuple):
     vfh: object
     movers_pos: np.ndarray
     movers_vel: np.ndarray
+    obstacles: np.ndarray = np.empty((0, 3))
+    radii: np.ndarray = np.empty(0)
+    docking: bool = False
 
 
 # ---------------------------------------------------------------------- the rules, in order
@@ -80,6 +85,19 @@ def dock_turn(cmd: Command, c: Cycle) -> None:
         cmd.v, cmd.w, cmd.turning = 0.0, turn_toward(s, to_goal, view.limits.w_max), True
 
 
+def dock_approach(cmd: Command, c: Cycle) -> None:
+    """[X] ``dock_approach``, ``approach_radius``: the leader on its final approach (``Cycle.docking``: within
+    ``approach_radius`` of its goal along a segment clear of its own map by r_uav + r_safe), in an estimated wind
+    stronger than ``vane_wind``, flies the approach law of ``home_in`` instead of DWA's choice: DWA's speed
+    profile and heading weight, blind to the wind, flew past the goal and orbited it 1-2 m away. In still air
+    DWA's approach stands (it parks the leader on headings that leave the followers' slots free more often:
+    with this rule in still air too, 3 of 7 still-air episodes of the dev subset closed the formation, without 6)."""
+    if not (c.docking and c.cfg.dock_approach and math.hypot(c.mem.wind[0], c.mem.wind[1]) > c.cfg.vane_wind):
+        return
+    home = home_in(c.view, c.mem, c.cfg, c.view.goal[:2])
+    cmd.v, cmd.w, cmd.turning = home.v, home.w, cmd.turning or home.turning
+
+
 def reverse_turn(cmd: Command, c: Cycle) -> None:
     """[X] ``reverse_turn_angle``: a UAV steering by a path's lookahead point (the leader; a rejoining follower)
     turns in place when that point lies more than ``reverse_turn_angle`` off its nose (unless it docks)."""
@@ -87,6 +105,62 @@ def reverse_turn(cmd: Command, c: Cycle) -> None:
     to_lookahead = c.lookahead - s[:2]
     if not cmd.turning and c.mem.on_path and abs(bearing_error(s, to_lookahead)) > c.cfg.reverse_turn_angle:
         cmd.v, cmd.w, cmd.turning = 0.0, turn_toward(s, to_lookahead, c.view.limits.w_max), True
+
+
+def drift_guard(cmd: Command, c: Cycle) -> None:
+    """[X] ``guard_clearance``, ``guard_speed``: with no admissible DWA sample, a UAV whose clearance to the nearest
+    obstacle point (own-map voxel or world bound) beside it is below ``guard_clearance`` does not brake to a
+    hover, which the wind pushes on into the obstacle, but turns its nose away from that point and flies
+    off at ``guard_speed`` plus the estimated wind toward the point (``mem.wind``), times the cosine of its
+    bearing error (0 beyond 90 degrees). A point more above or
+    below than beside is the emergency escape's case (g5)."""
+    if c.dwa.admissible or len(c.obstacles) == 0 or c.cfg.guard_clearance <= 0.0:
+        return
+    view = c.view
+    s, lim = view.state, view.limits
+    gaps = np.linalg.norm(c.obstacles - s[:3], axis=1) - c.radii
+    m = int(np.argmin(gaps))
+    if gaps[m] - lim.r_uav >= c.cfg.guard_clearance:
+        return
+    away = s[:2] - c.obstacles[m, :2]
+    if math.hypot(away[0], away[1]) <= abs(s[2] - c.obstacles[m, 2]):
+        return
+    err = bearing_error(s, away)
+    toward = -float(c.mem.wind @ away) / math.hypot(away[0], away[1])      # wind component toward the point
+    speed = min(lim.v_max, c.cfg.guard_speed + max(0.0, toward))
+    cmd.v, cmd.w = speed * max(0.0, math.cos(err)), turn_toward(s, away, lim.w_max)
+
+
+def vertical_separation(cmd: Command, c: Cycle) -> None:
+    """[X] ``separation_margin``: a live neighbour within R_uu + ``separation_margin`` (3D) is left vertically, at
+    full climb rate away from it (the higher UAV climbs, the lower descends; on a tie the higher index climbs),
+    unless the altitude band or a voxel of the own map within r_uav + r_safe of the point r_uav + r_safe along
+    the way closes that direction (then the other way; neither: DWA's command stands).
+    DWA's admissibility cannot help a UAV already inside R_uu (every sample is inadmissible, it brakes) and
+    the horizontal dynamic window (0.2 m/s^2) is too slow against gusts that push two UAVs together; the
+    vertical one (0.5 m/s^2, 0.5 m/s) is the fastest way apart."""
+    view, cfg = c.view, c.cfg
+    alive = view.neighbour_alive
+    if c.cfg.separation_margin <= 0.0 or not alive.any():
+        return
+    pos = view.state[:3]
+    movers = c.movers_pos[alive]
+    dist = np.linalg.norm(movers - pos, axis=1)
+    m = int(np.argmin(dist))
+    if dist[m] >= cfg.dwa.R_uu + cfg.separation_margin:
+        return
+    lim = view.limits
+    dz = pos[2] - movers[m, 2]
+    up = dz > 0.0 if abs(dz) > 1e-6 else view.index > int(view.neighbour_ids[alive][m])
+    margin = lim.r_uav + lim.r_safe
+    for sign in ((1.0, -1.0) if up else (-1.0, 1.0)):
+        z_next = pos[2] + sign * margin                    # checked every cycle: the next r_uav + r_safe of the way
+        if not lim.z_min <= z_next <= lim.z_max:
+            continue
+        if view.occupancy.occupied_within(np.array([pos[0], pos[1], z_next]), margin):
+            continue
+        cmd.vz = sign * lim.vz_max
+        return
 
 
 def emergency_escape(cmd: Command, c: Cycle) -> None:
@@ -107,8 +181,62 @@ def emergency_escape(cmd: Command, c: Cycle) -> None:
         cmd.vz = 0.0                    # the escape would fly into a neighbour (above or below)
 
 
-RULES = (braking_fallback, dock_turn, reverse_turn, emergency_escape)
+RULES = (braking_fallback, dock_turn, dock_approach, reverse_turn, drift_guard, vertical_separation, emergency_escape)
 """The rules after DWA, in the order they act on the command (later ones override earlier ones)."""
+
+
+# ---------------------------------------------------------------------- the hold stage (no DWA)
+def station_keep(view, mem, cfg, hold_xy, heading: float) -> Command:
+    """[X] ``hold_radius``, ``k_hold``, ``vane_wind``: a UAV holding a point (the arrived leader at its goal; a UAV
+    with no way to its goal, where it stopped) keeps it against the wind. The air velocity it needs is
+    u = k_hold (p_hold - p) - w (return to the point and cancel the wind ``mem.wind`` its own drift estimates);
+    a unicycle with v >= 0 has no lateral control, so it turns its nose toward u and flies at |u| times the
+    cosine of the bearing error (0 beyond 90 degrees). Within ``hold_radius`` of the point with |u| below
+    ``vane_wind`` (still air) it stops and turns to ``heading``. The returned ``vz`` is 0 (the caller holds
+    altitude)."""
+    s, lim = view.state, view.limits
+    to_hold = np.asarray(hold_xy, dtype=np.float64) - s[:2]
+    u = cfg.k_hold * to_hold - mem.wind
+    speed = math.hypot(u[0], u[1])
+    if math.hypot(to_hold[0], to_hold[1]) <= cfg.hold_radius and speed <= cfg.vane_wind:
+        return Command(0.0, clamp(wrap(heading - s[PSI]), -lim.w_max, lim.w_max), 0.0)
+    err = bearing_error(s, u)
+    return Command(clamp(speed * math.cos(err), 0.0, lim.v_max), clamp(err, -lim.w_max, lim.w_max), 0.0)
+
+
+def home_in(view, mem, cfg, point_xy) -> Command:
+    """Fly to a fixed point without orbiting it: turn toward it (in place while it lies more than
+    ``dock_turn_angle`` off the nose) and fly at ``k_hold`` times the distance plus the headwind the UAV's own
+    drift estimates (``mem.wind``), scaled by the cosine of the bearing error and capped at the pure-pursuit
+    speed that still steers onto the point (so the turn-rate limit never carries it round the point)."""
+    s, lim = view.state, view.limits
+    to_point = np.asarray(point_xy, dtype=np.float64) - s[:2]
+    dist = math.hypot(to_point[0], to_point[1])
+    if dist < 1e-9:
+        return Command(0.0, 0.0, 0.0)
+    err = bearing_error(s, to_point)
+    w = clamp(err, -lim.w_max, lim.w_max)
+    if abs(err) > cfg.dock_turn_angle:
+        return Command(0.0, w, 0.0, turning=True)
+    headwind = max(0.0, -float(mem.wind @ to_point) / dist)
+    v = (cfg.k_hold * dist + headwind) * math.cos(err)
+    sin_err = abs(math.sin(err))
+    if sin_err > 1e-9:
+        v = min(v, lim.w_max * dist / (2.0 * sin_err))          # pure pursuit onto the point (no orbit)
+    return Command(clamp(v, 0.0, lim.v_max), w, 0.0)
+
+
+def wind_estimate(view, mem, cfg) -> None:
+    """[X] ``wind_tau``: the horizontal wind from the UAV's own drift. The last cycle's pose moved by the commands
+    now in its state (the kinematic model of spec (a)) predicts this pose; what is left over per second is
+    the drift, low-pass filtered with time constant ``wind_tau`` into ``mem.wind`` (zero in still air)."""
+    s, dt = view.state, view.limits.dt
+    prev = mem.prev_pose
+    if prev is not None:
+        x, y, _, _ = integrate(prev[0], prev[1], 0.0, prev[2], s[V], s[W], 0.0, dt)
+        drift = np.array([s[0] - x, s[1] - y]) / dt
+        mem.wind = mem.wind + min(1.0, dt / cfg.wind_tau) * (drift - mem.wind)
+    mem.prev_pose = (float(s[0]), float(s[1]), float(s[PSI]))
 
 
 # ---------------------------------------------------------------------- helpers (the controller uses them too)
