@@ -906,3 +906,31 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
     _, _, _, _, brake_clearance, _, brake_end, brake_alignment = run(v_lo, v_lo, brake_w, brake_w, True)
     return DWAResult(v_lo, brake_w, False, 0, math.nan, brake_end[0].copy(), brake_clearance.item(0),
                      brake_alignment.item(0), candidates)
+
+
+def geofence_points(pos, reach: float, lo, hi, spacing: float) -> np.ndarray:
+    """Points on the world's vertical x/y bound planes within ``reach`` of ``pos``, at its altitude: the bounds
+    (a crash in the env) as DWA obstacles, ``spacing`` apart."""
+    pts = []
+    for axis in (0, 1):
+        other = 1 - axis
+        for bound in (lo[axis], hi[axis]):
+            gap = abs(pos[axis] - bound)
+            if gap >= reach:
+                continue
+            half = math.sqrt(reach ** 2 - gap ** 2)
+            t = np.arange(pos[other] - half, pos[other] + half + spacing, spacing)
+            p = np.empty((t.size, 3))
+            p[:, axis] = bound
+            p[:, other] = t
+            p[:, 2] = pos[2]
+            pts.append(p)
+    return np.concatenate(pts) if pts else np.empty((0, 3))
+
+
+def project_to_altitude(obstacles: np.ndarray, z: float, band: float) -> np.ndarray:
+    """Planar DWA (spec (g5), the 2D baseline): the voxels within ``band`` of the flight altitude, put at it."""
+    keep = np.abs(obstacles[:, 2] - z) <= band
+    out = obstacles[keep].copy()
+    out[:, 2] = z
+    return out

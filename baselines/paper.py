@@ -32,9 +32,9 @@ from uavform_env.dynamics import PSI, V, VZ, W
 from uavform_env.world import grid_frame
 
 from .astar import AStarConfig, GlobalPath, Raster, inflate, plan_path, replan_trigger
-from .dwa import DWAConfig, dwa_plan
+from .dwa import DWAConfig, dwa_plan, geofence_points, project_to_altitude
 from .policy import OnboardPolicy
-from .vfh3d import VFHConfig, VFHState, vfh3d_step
+from .vfh3d import VFHConfig, VFHState, vertical_escape, vfh3d_step
 
 LEVEL, CLIMB, BLOCKED = "level", "climb", "blocked"
 
@@ -179,12 +179,12 @@ class PaperPlanner(OnboardPolicy):
             elif mode == BLOCKED:
                 vz_cmd = 0.0
         else:
-            obstacles = _project(obstacles, pos[2], lim.r_uav + lim.r_safe + radius)
+            obstacles = project_to_altitude(obstacles, pos[2], lim.r_uav + lim.r_safe + radius)
 
         clearance_now = _clearance(pos, obstacles, radius, lim.r_uav)
         radii = np.full(len(obstacles), radius)
         if cfg.geofence_spacing is not None:
-            fence = _geofence(pos, reach, view.bounds_lo, view.bounds_hi, cfg.geofence_spacing)
+            fence = geofence_points(pos, reach, view.bounds_lo, view.bounds_hi, cfg.geofence_spacing)
             obstacles = np.concatenate([obstacles, fence])
             radii = np.concatenate([radii, np.zeros(len(fence))])
         alive = view.neighbour_alive
@@ -201,7 +201,7 @@ class PaperPlanner(OnboardPolicy):
                 err = math.atan2(heading_goal[1] - pos[1], heading_goal[0] - pos[0]) - s[PSI]
                 w_c = _clamp(math.remainder(err, 2 * math.pi), lim.w_max)
                 if mem.stuck_time >= cfg.T_stuck:
-                    vz_cmd = _vertical_escape(vfh_result, lim)
+                    vz_cmd = vertical_escape(vfh_result, lim)
         if vfh_result is not None and vfh_result.emergency:    # (g5): stop, move vertically away for a cycle
             away = _away_vertically(pos, view.occupancy, cfg.vfh.resolve(lim, res_vox)[0], lim)
             if away is not None:
@@ -319,42 +319,11 @@ def _clamp(x: float, limit: float) -> float:
     return float(min(max(x, -limit), limit))
 
 
-def _project(obstacles: np.ndarray, z: float, band: float) -> np.ndarray:
-    """Planar mode (g5 '2D baseline'): the voxels within ``band`` of the flight altitude, moved onto it."""
-    out = obstacles[np.abs(obstacles[:, 2] - z) <= band].copy()
-    out[:, 2] = z
-    return out
-
-
 def _clearance(pos, obstacles: np.ndarray, radius: float, r_uav: float) -> float:
     """d_min of eq. 11: distance to the nearest voxel surface minus r_uav (inf without voxels)."""
     if len(obstacles) == 0:
         return math.inf
     return float(np.sqrt(((obstacles - pos) ** 2).sum(axis=1).min())) - radius - r_uav
-
-
-def _geofence(pos, reach: float, lo, hi, spacing: float) -> np.ndarray:
-    """Points on the world's vertical x/y bound planes within ``reach`` of ``pos``, at its altitude."""
-    parts = [np.empty((0, 3))]
-    for axis in (0, 1):
-        for bound in (lo[axis], hi[axis]):
-            gap = abs(pos[axis] - bound)
-            if gap < reach:
-                half = math.sqrt(reach ** 2 - gap ** 2)
-                t = np.arange(pos[1 - axis] - half, pos[1 - axis] + half + spacing, spacing)
-                p = np.empty((t.size, 3))
-                p[:, axis], p[:, 1 - axis], p[:, 2] = bound, t, pos[2]
-                parts.append(p)
-    return np.concatenate(parts)
-
-
-def _vertical_escape(r, lim) -> float:
-    """(g4) after T_stuck: full climb (descent) if the straight-up (down) cells are free, else 0."""
-    if not r.binary[-1].any():
-        return lim.vz_max
-    if not r.binary[0].any():
-        return -lim.vz_max
-    return 0.0
 
 
 def _away_vertically(pos, occ_map, r_e: float, lim) -> float | None:

@@ -609,3 +609,13 @@ def _step(setup: tuple, state: VFHState, cfg: VFHConfig, limits: UAVLimits, pos,
     az = float(azimuth[col])
     return VFHResult(False, az - 2.0 * math.pi if az > math.pi else az, float(elevation[row]), direction, emergency,
                      primary, binary, masked, n_candidates, window_open)
+
+
+def vertical_escape(result, lim) -> float:
+    """The pure-vertical escape of spec (g4) after T_stuck: full climb (descent) if the straight-up (down) cells
+    of ``result``'s binary histogram hold no obstacle, else 0."""
+    if not result.binary[-1].any():
+        return lim.vz_max
+    if not result.binary[0].any():
+        return -lim.vz_max
+    return 0.0

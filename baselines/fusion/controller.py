@@ -25,7 +25,7 @@ from uavform_env.formation import formation_slots, slot_positions
 from uavform_env.world import grid_frame
 
 from ..astar import GlobalPath, Raster, inflate, plan_path, replan_trigger
-from ..dwa import dwa_plan
+from ..dwa import dwa_plan, geofence_points, project_to_altitude
 from ..policy import OnboardPolicy
 from ..vfh3d import VFHPlanner, VFHState
 from .config import ExpertConfig
@@ -238,7 +238,7 @@ class FusionExpert(OnboardPolicy):
         obstacles, radius, v_cap = local.obstacles, local.radius, target.v_cap
         if not cfg.use_vfh:
             mem.mode = LEVEL
-            obstacles = _project_to_altitude(obstacles, pos[2], lim.r_uav + lim.r_safe + radius)
+            obstacles = project_to_altitude(obstacles, pos[2], lim.r_uav + lim.r_safe + radius)
             return _Vertical(vz, v_cap, target.goal, obstacles, radius, None)
         heading_goal = target.goal
         if local.level == 0 and local.reach >= cfg.vfh.R_w:   # the same voxels, in the same order, as a query
@@ -288,7 +288,7 @@ class FusionExpert(OnboardPolicy):
             dwa_cfg = replace(dwa_cfg, beta=0.0)
         docking = view.is_leader and self._final_approach(view, target.goal, obstacles, radius, cfg,
                                                           cfg.approach_radius)
-        fence = _geofence(pos, local.reach, view.bounds_lo, view.bounds_hi, cfg.geofence_spacing)
+        fence = geofence_points(pos, local.reach, view.bounds_lo, view.bounds_hi, cfg.geofence_spacing)
         radii = np.full(len(obstacles), radius + cfg.wind_margin * math.hypot(mem.wind[0], mem.wind[1]))
         if len(fence):
             obstacles = np.concatenate([obstacles, fence])
@@ -594,33 +594,6 @@ def _gap_altitude(view, target_xy, z_pref: float, cfg: ExpertConfig) -> float | 
                                max(1, int(round(cfg.gap_depth / res))), lim.r_uav + lim.r_safe, lim.z_min, lim.z_max,
                                cfg.gap_margin)
     return None if math.isnan(best) else best
-
-
-def _geofence(pos, reach: float, lo, hi, spacing: float) -> np.ndarray:
-    """Points on the world's vertical x/y bound planes within ``reach`` of ``pos``, at its altitude."""
-    pts = []
-    for axis in (0, 1):
-        other = 1 - axis
-        for bound in (lo[axis], hi[axis]):
-            gap = abs(pos[axis] - bound)
-            if gap >= reach:
-                continue
-            half = math.sqrt(reach ** 2 - gap ** 2)
-            t = np.arange(pos[other] - half, pos[other] + half + spacing, spacing)
-            p = np.empty((t.size, 3))
-            p[:, axis] = bound
-            p[:, other] = t
-            p[:, 2] = pos[2]
-            pts.append(p)
-    return np.concatenate(pts) if pts else np.empty((0, 3))
-
-
-def _project_to_altitude(obstacles: np.ndarray, z: float, band: float) -> np.ndarray:
-    """Planar mode: keep the voxels within ``band`` of the flight altitude and put them at that altitude."""
-    keep = np.abs(obstacles[:, 2] - z) <= band
-    out = obstacles[keep].copy()
-    out[:, 2] = z
-    return out
 
 
 _ORIGIN = np.zeros(2)

@@ -16,6 +16,7 @@ import numpy as np
 
 from uavform_env.dynamics import PSI, V, W, integrate, wrap
 
+from ..vfh3d import vertical_escape
 from .kernels import closest_approach
 
 
@@ -258,15 +259,6 @@ def turn_toward(state, direction, w_max: float) -> float:
 def leader_parked(view, cfg) -> bool:
     """Whether the leader's broadcast speed is below ``leader_stopped_speed`` (its followers dock)."""
     return bool(view.leader_state[V] < cfg.leader_stopped_speed)
-
-
-def vertical_escape(r, lim) -> float:
-    """After T_stuck: climb (or descend) at full rate if the straight-up (down) cells hold no obstacle."""
-    if not r.binary[-1].any():
-        return lim.vz_max
-    if not r.binary[0].any():
-        return -lim.vz_max
-    return 0.0
 
 
 def closes_on_movers(pos, vz: float, movers_pos, movers_vel, dwa, lim) -> bool:
