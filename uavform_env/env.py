@@ -1,9 +1,9 @@
 """FormationEnv: the PettingZoo ParallelEnv of N UAVs flying a formation through a 3D obstacle field.
 
 The class is glue: every stage of a step (dynamics, collisions, sensing, maps, observations,
-rewards) is an array function of its own module, called here in the order of
-docs/architecture: validate -> commands -> dynamics -> collisions -> sensing -> maps ->
-observations -> rewards, endings and infos.
+rewards) is an array function of its own module, called here in this order: validate -> commands ->
+dynamics (and wind) -> collisions -> sensing (and its faults) -> maps (one batched call) -> observations ->
+rewards, endings and infos. The README's "Using the environment" is this env's documentation page.
 """
 
 from __future__ import annotations
