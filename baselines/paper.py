@@ -31,12 +31,12 @@ from uavform_env.config import Config, boolean, in_range, instance_of, integer, 
 from uavform_env.dynamics import PSI, V, VZ, W
 from uavform_env.world import grid_frame
 
-from .astar import AStarConfig, GlobalPath, Raster, inflate, plan_path, replan_trigger
+from .astar import AStarConfig, Raster, inflate, plan_path, replan_trigger
 from .dwa import DWAConfig, dwa_plan, geofence_points, project_to_altitude
 from .policy import OnboardPolicy
-from .vfh3d import VFHConfig, VFHState, vertical_escape, vfh3d_step
+from .vertical import BLOCKED, CLIMB, LEVEL, PlannerMemory
+from .vfh3d import VFHConfig, vertical_escape, vfh3d_step
 
-LEVEL, CLIMB, BLOCKED = "level", "climb", "blocked"
 
 
 @dataclass(frozen=True)
@@ -104,20 +104,11 @@ class PaperConfig(Config):
 
 
 @dataclass
-class _Memory:
-    """What one UAV's planner keeps between cycles."""
+class _Memory(PlannerMemory):
+    """What one UAV's planner keeps between cycles: the shared (g4) state and its replanning clock."""
 
-    vfh: VFHState = field(default_factory=VFHState)
-    mode: str = LEVEL
-    pending: str = LEVEL
-    pending_count: int = 0
-    stuck_time: float = 0.0
-    prev_alignment: float = 1.0
-    path: GlobalPath | None = None
-    path_found: bool = True
     last_plan_time: float = -math.inf
     last_check_time: float = -math.inf
-    replans: int = 0
 
 
 class PaperPlanner(OnboardPolicy):

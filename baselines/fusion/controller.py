@@ -27,34 +27,24 @@ from uavform_env.world import grid_frame
 from ..astar import GlobalPath, Raster, inflate, plan_path, replan_trigger
 from ..dwa import dwa_plan, geofence_points, project_to_altitude
 from ..policy import OnboardPolicy
-from ..vfh3d import VFHPlanner, VFHState
+from ..vertical import BLOCKED, CLIMB, LEVEL, PlannerMemory
+from ..vfh3d import VFHPlanner
 from .config import ExpertConfig
 from .kernels import (closest_approach, columns_without_gap, gap_altitude_kernel, in_sphere, open_level_way,
                       segment_clear, surface_clearance)
 from .rules import RULES, Command, Cycle, bearing_error, clamp, leader_parked, station_keep, wind_estimate
 
-LEVEL, CLIMB, BLOCKED = "level", "climb", "blocked"
-
 
 @dataclass
-class _UAVMemory:
-    """What one UAV's controller remembers between cycles."""
+class _UAVMemory(PlannerMemory):
+    """What one UAV's controller remembers between cycles: the shared (g4) state and the expert's own."""
 
-    vfh: VFHState = field(default_factory=VFHState)
-    mode: str = LEVEL
-    pending: str = LEVEL
-    pending_count: int = 0
-    stuck_time: float = 0.0
-    prev_alignment: float = 1.0
     column_until: float = -1.0
-    path: GlobalPath | None = None
-    path_found: bool = True
     plan_goal: np.ndarray | None = None
     goal_visible: bool = True
     on_path: bool = False
     last_plan_time: float = -1e9
     last_check_time: float = -1e9
-    replans: int = 0
     trail: list = field(default_factory=list)
     trail_progress: int = 0
     arrived: bool = False
