@@ -330,9 +330,9 @@ class EpisodeConfig(Config):
 class DisturbanceConfig(Config):
     """Wind on the airframe and faults of the range sensor (README, "Disturbances").
 
-    Wind: Ornstein-Uhlenbeck gusts of ``wind_std`` m/s per axis (vertical scaled by 0.3) with
-    correlation time ``wind_tau`` s, plus the steady ``wind_mean`` (x, y) m/s, pushing every flying
-    UAV's position (``FormationEnv._apply_wind``). Sensor: every range that hit something gets Gaussian
+    Wind: a gust field (``wind.GustField``) of ``wind_std`` m/s per horizontal axis (vertical scaled by
+    ``wind_vertical``), correlation time ``wind_tau`` s and correlation length ``wind_length`` m, plus the
+    steady ``wind_mean`` (x, y) m/s, pushing every flying UAV's position (``FormationEnv._apply_wind``). Sensor: every range that hit something gets Gaussian
     noise of ``range_noise_std`` m, and each ray is lost with probability ``ray_dropout`` (it then reads
     as no return: free space up to r_max, as a lidar's lost echo does) (``sensing.perturb_scan``).
     Named presets: ``DISTURBANCE_PRESETS``.
@@ -340,6 +340,8 @@ class DisturbanceConfig(Config):
 
     wind_std: float = 0.0
     wind_tau: float = 2.0
+    wind_length: float = 20.0
+    wind_vertical: float = 0.3
     wind_mean: tuple[float, float] = (0.0, 0.0)
     range_noise_std: float = 0.0
     ray_dropout: float = 0.0
@@ -348,6 +350,8 @@ class DisturbanceConfig(Config):
         o = "DisturbanceConfig"
         check_range(o, "wind_std", self.wind_std, 0.0, 10.0)
         check_range(o, "wind_tau", self.wind_tau, 0.0, None, lo_open=True)
+        check_range(o, "wind_length", self.wind_length, 0.0, None, lo_open=True)
+        check_range(o, "wind_vertical", self.wind_vertical, 0.0, 1.0)
         mean = self.wind_mean
         if not isinstance(mean, (tuple, list)) or len(mean) != 2:
             raise ValueError(f"{o}.wind_mean={mean!r}: expected two numbers (x, y) in m/s")

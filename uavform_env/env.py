@@ -29,6 +29,7 @@ from .onboard import OnboardView, PriorMap
 from .rewards import compute_rewards
 from .scenarios import Scenario, ScenarioFileError, load_scenario, make_scenario, validate_scenario
 from .sensing import STATIC, RangeSensor, perturb_scan
+from .wind import GUST_MODES, GustField
 from .world import World, _read_only, grid_frame
 
 _LAYOUTS_KEPT = 2  # layouts (scenario, raster, prior) an env keeps for its next resets
@@ -197,7 +198,9 @@ class FormationEnv(ParallelEnv):
         self.crash_cause = np.zeros(n, np.int64)  # index into CRASH_CAUSES
         self.end_reason = self._first_crash = 0  # indices into END_REASONS
         self.prev_actions = np.zeros((n, 3), np.float32)
-        self.wind = np.zeros((n, 3))
+        d = cfg.disturbance
+        self._gusts = (GustField(self._wind_rng, d.wind_std, d.wind_tau, d.wind_length, GUST_MODES, d.wind_vertical)
+                       if d.wind_std > 0 else None)
         self.step_count = 0
         self.success = False
         w = self.world
@@ -328,13 +331,12 @@ class FormationEnv(ParallelEnv):
         d, dt = self.config.disturbance, self.config.uav.dt
         if not d.windy:
             return
-        # Ornstein-Uhlenbeck gusts (m/s) plus the steady mean wind, integrated as a position disturbance.
-        if d.wind_std > 0:
-            decay = math.exp(-dt / d.wind_tau)
-            noise = self._wind_rng.standard_normal(self.wind.shape) * d.wind_std * math.sqrt(1.0 - decay ** 2)
-            self.wind = self.wind * decay + noise
-            self.wind[:, 2] *= 0.3
-        air = self.wind + np.array([d.wind_mean[0], d.wind_mean[1], 0.0])
+        # The gust field where each UAV is, plus the steady mean wind, integrated as a position disturbance.
+        air = np.zeros((self.n_uavs, 3))
+        air[:, :2] = d.wind_mean
+        if self._gusts is not None:
+            self._gusts.advance(dt)
+            air += self._gusts.at(self.states[:, :3])
         self.states[self.active, :3] += air[self.active] * dt
         u = self.config.uav
         np.clip(self.states[:, 2], u.z_min, u.z_max, out=self.states[:, 2])

@@ -210,6 +210,7 @@ _KEY_NOTES = {
                 "n_uavs": "number of UAVs, uav_0 (the leader) .. uav_{N-1}",
                 "slot_altitude": "followers' slot altitude: z_ref (fixed) | leader (the leader's altitude)"},
     "disturbance": {"wind_std": "gust strength, std per axis (m/s)", "wind_tau": "gust correlation time (s)",
+                    "wind_length": "gust correlation length (m)", "wind_vertical": "vertical gusts / horizontal",
                     "wind_mean": "steady wind [x, y] (m/s)", "range_noise_std": "range noise, std (m)",
                     "ray_dropout": "probability that a ray returns nothing"},
 }
