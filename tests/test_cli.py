@@ -239,6 +239,48 @@ def test_the_compile_notice_is_printed_once_while_kernels_are_cold(tmp_path, mon
     monkeypatch.delitem(sys.modules, "nu_kernels")
 
 
+def test_a_process_that_has_flown_gives_no_notice_even_with_modules_never_called(tmp_path, monkeypatch, capsys):
+    """A leaderboard worker makes an env per episode, and modules whose kernels it never calls (the expert's, under
+    `--policy hover`; OctoMap's ray-key helper) stay cold: once a kernel has run here, no env repeats the notice.
+    Kernels inlined into their callers are never cached alone and do not count."""
+    package = tmp_path / "nu_flown"
+    package.mkdir()
+    (package / "__init__.py").write_text(textwrap.dedent("""
+        from numba import njit
+
+        @njit(cache=True, inline="always")
+        def helper(x):
+            return x + 1
+
+        @njit(cache=True)
+        def used(x):
+            return helper(x)
+
+        @njit(cache=True)
+        def never(x):
+            return 3 * x
+    """))
+    (package / "idle.py").write_text(textwrap.dedent("""
+        from numba import njit
+
+        @njit(cache=True)
+        def idle(x):
+            return x
+    """))
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr("uavform_env.kernels.PACKAGES", ("nu_flown",))
+    import nu_flown
+    import nu_flown.idle
+
+    assert compile_notice() and capsys.readouterr().err == MESSAGE + "\n"
+    assert nu_flown.used(1) == 2
+    assert cold_modules() == ["nu_flown.idle"]                  # never called: cold for good
+    assert compile_notice() is False and capsys.readouterr().err == ""
+    for name in ("nu_flown.idle", "nu_flown"):
+        monkeypatch.delitem(sys.modules, name)
+
+
 def test_an_env_checks_for_cold_kernels_at_its_first_reset_only(monkeypatch):
     from uavform_env import parallel_env
     calls = []
