@@ -1,6 +1,7 @@
 """Env speed with every UAV flying, next to PettingZoo MPE simple_spread and VMAS at the same N, in one run.
 
-    python benchmarks/env_step.py [--ns 5 10 20 50] [--steps 400] [--resets 5] [--copies 16] [--budget 60]
+    python benchmarks/env_step.py [--ns 5 10 20 50] [--steps 400] [--resets 5] [--copies 16]
+                                  [--vector-workers 1 2] [--budget 60]
                                   [--out env_step.json]
 
 Ours: the fusion expert flies forest (``n_uavs=N``, the episode seed ``--seed``) for ``--steps`` steps and
@@ -15,9 +16,11 @@ Per configuration, in its own process: agent-steps/s (N x steps / wall time of t
 every new seed) and the process's peak RSS (``resource.getrusage``, so it includes the interpreter and
 the imports: about 100 MB for ours and MPE, more for VMAS, which imports torch).
 
-The vector-env line: ``uavform_env.vector.VectorEnv`` with ``--copies`` copies of N = 5, every copy
-replaying the expert's recorded flight on the recorded layout (``layout_seed``; with the default sensor
-and no wind the flight does not depend on the episode seed), so all K x 5 UAVs fly.
+The vector-env lines: ``--copies`` copies of N = 5 (``training.vecenv.SharedPolicyVecEnv``, the residual
+training's VecEnv: one ``uavform_env.vector.VectorEnv`` inline, or the copies split over
+``--vector-workers`` worker processes), every copy replaying the expert's recorded flight on the recorded
+layout (``layout_seed``; with the default sensor and no wind the flight does not depend on the episode
+seed), so all K x 5 UAVs fly. The ``alive`` column counts the rows whose info says not crashed.
 """
 
 from __future__ import annotations
@@ -152,26 +155,31 @@ def vmas(n: int, seed: int, steps: int, resets: int, budget: float) -> dict:
             "peak_rss_mb": _peak_rss_mb(), "import_rss_mb": imports}
 
 
-def vector(n: int, copies: int, seed: int, steps: int, path: str, budget: float) -> dict:
+def vector(n: int, copies: int, seed: int, steps: int, path: str, budget: float, workers: int = 1) -> dict:
+    from training.vecenv import SharedPolicyVecEnv
     from uavform_env import parallel_env
-    from uavform_env.vector import VectorEnv
 
     acts = np.load(path)
     imports = _peak_rss_mb()
     kwargs = _ours_kwargs(n, seed, steps)
-    venv = VectorEnv(lambda: parallel_env(**kwargs), copies)
-    venv.reset(seed=seed + 10_000)              # warm-up (numba cache)
-    reset_all = _reset_ms(lambda s: venv.reset(seed=s), [seed])   # copy k: episode seed seed + k, the recorded layout
+    venv = SharedPolicyVecEnv(lambda: parallel_env(**kwargs), copies, backend="process" if workers > 1 else "inline",
+                              workers=workers)
+    venv.seed(seed + 10_000)
+    venv.reset()                                # warm-up (numba cache)
+    venv.seed(seed)                             # copy k: episode seed seed + k, the recorded layout
+
+    reset_all = _reset_ms(lambda s: venv.reset(), [seed])
     counts = {"alive": 0}
 
     def step(a):
-        venv.step(np.broadcast_to(a, (copies, *a.shape)))
-        counts["alive"] += sum(int(e.unwrapped.active.sum()) for e in venv.envs)
+        *_, infos = venv.step(np.broadcast_to(a, (copies, *a.shape)).reshape(copies * n, -1))
+        counts["alive"] += sum(1 - info["crashed"] for info in infos)
 
     done, wall = _timed(step, acts, budget)
+    venv.close()
     return {"agent_steps_per_s": copies * n * done / wall, "reset_all_ms": reset_all,
             "peak_rss_mb": _peak_rss_mb(), "import_rss_mb": imports, "alive": counts["alive"] / (done * n * copies),
-            "steps": done}
+            "steps": done, "workers": workers}
 
 
 CHILDREN = {"record": record, "ours": ours, "mpe": mpe, "vmas": vmas, "vector": vector}
@@ -218,18 +226,20 @@ def to_markdown(result: dict) -> str:
                      f"{_fmt(v, 'reset_ms', '.2f')} | {_rss(v)} | {ratio} |")
     errors = [f"- N={row['n']} {name}: {row[name]['error']}" for row in result["rows"]
               for name in ("ours", "mpe", "vmas") if "error" in row[name]]
-    vec = result.get("vector")
-    if vec is not None:
-        lines += ["", f"Vector env (uavform_env.vector.VectorEnv), K = {vec['copies']} copies of N = {vec['n']}, "
-                      "every copy replaying the expert's flight:", "",
-                  "| K x N | agent-steps/s | steps | alive | reset of all copies ms | peak RSS MB |",
-                  "|---|---|---|---|---|---|",
-                  f"| {vec['copies']} x {vec['n']} | {_fmt(vec, 'agent_steps_per_s', '.0f')} | "
-                  f"{_fmt(vec, 'steps', 'd')} | "
-                  f"{_fmt(vec, 'alive', '.2f')} | {_fmt(vec, 'reset_all_ms', '.0f')} | "
-                  f"{_rss(vec)} |"]
-        if "error" in vec:
-            errors.append(f"- vector env: {vec['error']}")
+    vecs = result.get("vector")
+    if vecs is not None:
+        vecs = [vecs] if isinstance(vecs, dict) else vecs        # one line per worker count (older files: one)
+        lines += ["", f"Vector env, K = {vecs[0]['copies']} copies of N = {vecs[0]['n']}, every copy replaying the "
+                      "expert's flight (training.vecenv.SharedPolicyVecEnv: one VectorEnv inline, or the copies split "
+                      "over worker processes):", "",
+                  "| K x N | workers | agent-steps/s | steps | alive | reset of all copies ms | peak RSS MB |",
+                  "|---|---|---|---|---|---|---|"]
+        for vec in vecs:
+            lines.append(f"| {vec['copies']} x {vec['n']} | {vec.get('workers', 1)} | "
+                         f"{_fmt(vec, 'agent_steps_per_s', '.0f')} | {_fmt(vec, 'steps', 'd')} | "
+                         f"{_fmt(vec, 'alive', '.2f')} | {_fmt(vec, 'reset_all_ms', '.0f')} | {_rss(vec)} |")
+            if "error" in vec:
+                errors.append(f"- vector env, {vec.get('workers', 1)} worker(s): {vec['error']}")
     if errors:
         lines += ["", "Not measured:"] + errors
     return "\n".join(lines) + "\n"
@@ -242,6 +252,8 @@ def main() -> None:
     parser.add_argument("--resets", type=int, default=5, help="resets with new seeds; the median is reported")
     parser.add_argument("--copies", type=int, default=16, help="copies in the vector-env line (0: skip it)")
     parser.add_argument("--vector-n", type=int, default=5, help="UAVs per copy in the vector-env line")
+    parser.add_argument("--vector-workers", type=int, nargs="+", default=[1, 2],
+                        help="worker processes the copies are split over; one vector-env line each (1: inline)")
     parser.add_argument("--seed", type=int, default=0, help="the recorded episode's seed")
     parser.add_argument("--budget", type=float, default=60.0,
                         help="seconds per timed step loop: a slower configuration is timed over the steps done by "
@@ -256,8 +268,8 @@ def main() -> None:
     for name in ("steps", "resets", "budget"):
         if getattr(args, name) <= 0:
             parser.error(f"--{name} must be > 0")
-    if min(args.ns) < 1 or args.copies < 0 or args.vector_n < 1:
-        parser.error("--ns and --vector-n must be >= 1 and --copies >= 0")
+    if min(args.ns) < 1 or args.copies < 0 or args.vector_n < 1 or min(args.vector_workers) < 1:
+        parser.error("--ns, --vector-n and --vector-workers must be >= 1 and --copies >= 0")
     result = {"scenario": SCENARIO, "steps": args.steps, "resets": args.resets, "seed": args.seed, "rows": []}
     with tempfile.TemporaryDirectory() as tmp:
         for n in args.ns:
@@ -274,9 +286,10 @@ def main() -> None:
             path = str(Path(tmp) / f"expert-{args.vector_n}.npy")
             if not Path(path).exists():
                 _child("record", n=args.vector_n, seed=args.seed, steps=args.steps, path=path)
-            result["vector"] = {"copies": args.copies, "n": args.vector_n,
-                                **_child("vector", n=args.vector_n, copies=args.copies, seed=args.seed,
-                                         steps=args.steps, path=path, budget=args.budget)}
+            result["vector"] = [{"copies": args.copies, "n": args.vector_n, "workers": w,
+                                 **_child("vector", n=args.vector_n, copies=args.copies, seed=args.seed,
+                                          steps=args.steps, path=path, budget=args.budget, workers=w)}
+                                for w in args.vector_workers]
     print(to_markdown(result), end="")
     if args.out:
         from uavform_env.files import atomic_write_json

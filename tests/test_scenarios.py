@@ -394,3 +394,27 @@ def test_example_files(path):
     validate_scenario(scn, LIMITS, Z_REF)
     assert connected(scn)
     assert len(EXAMPLES) >= 2
+
+
+def _thin_reference(c, r, keep_out, kept_c, kept_r, zone, sep):
+    """The numpy formulation of one hard-core round (the scenarios' code before the kernel), for comparison."""
+    ok = np.hypot(c[:, None, 0] - keep_out[None, :, 0], c[:, None, 1] - keep_out[None, :, 1]).min(axis=1) - r >= zone
+    if kept_r.size:
+        to_kept = np.hypot(c[:, None, 0] - kept_c[None, :, 0], c[:, None, 1] - kept_c[None, :, 1])
+        ok &= np.all(to_kept - r[:, None] - kept_r[None, :] >= sep, axis=1)
+    pair = np.hypot(c[:, None, 0] - c[None, :, 0], c[:, None, 1] - c[None, :, 1]) - r[:, None] - r[None, :]
+    return ok & ~np.any(np.tril(pair < sep, k=-1) & ok[None, :], axis=1)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_hard_core_round_keeps_what_the_numpy_formulation_keeps(seed):
+    from uavform_env.scenarios import _thin
+
+    rng = np.random.default_rng(seed)
+    c, r = rng.uniform(0, 30, (150, 2)), rng.uniform(0.3, 0.8, 150)
+    keep_out = rng.uniform(0, 30, (10, 2))
+    kept_c, kept_r = (rng.uniform(0, 30, (12 * (seed % 3), 2)), rng.uniform(0.3, 0.8, 12 * (seed % 3)))
+    got = _thin(c, r, keep_out, kept_c, kept_r, 1.6, 2.2)
+    want = _thin_reference(c, r, keep_out, kept_c, kept_r, 1.6, 2.2)
+    assert 0 < want.sum() < want.size                    # the round both keeps and thins
+    np.testing.assert_array_equal(got, want)

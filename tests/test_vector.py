@@ -58,6 +58,27 @@ def test_copies_follow_their_own_seed_streams_and_auto_reset():
     assert list(venv.episodes) == [2, 2]
 
 
+def test_every_copy_plays_the_single_envs_episode_bit_for_bit():
+    venv = VectorEnv(make, 2, autoreset=False)
+    obs = venv.reset(seed=5)
+    acts = actions(2, MAX_CYCLES, seed=3)
+    steps = [venv.step(a) for a in acts]
+    assert venv.ended().all()
+    for k in range(2):
+        single = make()
+        ref, _ = single.reset(seed=copy_seed(5, k, 2, 0))
+        agents = single.possible_agents
+        np.testing.assert_array_equal(obs[k], np.stack([ref[a] for a in agents]))
+        for a, (o, rew, term, trunc, infos) in zip(acts, steps):
+            ref, r_rew, r_term, r_trunc, r_infos = single.step(dict(zip(agents, a[k])))
+            np.testing.assert_array_equal(o[k], np.stack([ref[a] for a in agents]))
+            np.testing.assert_array_equal(rew[k], np.array([r_rew[a] for a in agents], np.float32))
+            assert term[k].tolist() == [r_term[a] for a in agents]
+            assert trunc[k].tolist() == [r_trunc[a] for a in agents]
+            assert infos[k] == [r_infos[a] for a in agents]
+        assert not single.agents
+
+
 def test_same_seed_same_rollout_bit_for_bit_and_split_copies_agree():
     acts = actions(3, MAX_CYCLES + 3)
     first = rollout(VectorEnv(make, 3), acts, seed=11)

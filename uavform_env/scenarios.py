@@ -18,6 +18,7 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Callable
 
+import numba
 import numpy as np
 import tomli_w
 
@@ -629,23 +630,47 @@ def _open_layout(rng, n_uavs: int, formation: str, spacing: float) -> _Layout:
 
 def _hard_core(rng, layout: _Layout, count: int, radius_range: tuple[float, float], gap: float, rounds: int = 4):
     """Centres (k, 2) and radii (k,) of up to ``count`` discs clear of the zones, any two 2 (r_uav + r_safe)
-    + ``gap`` apart (as ``_scatter``), without a per-disc loop: each round throws a batch of candidates and
-    keeps those that clash with no disc kept before and no earlier valid candidate of the batch (Matern
-    type-II thinning), so the kept discs never clash."""
+    + ``gap`` apart (as ``_scatter``), without a per-disc Python loop: each round throws a batch of candidates
+    and keeps those that clash with no disc kept before and no earlier valid candidate of the batch (Matern
+    type-II thinning, ``_thin``), so the kept discs never clash."""
     sep = 2 * _R_CLEAR + gap
     kept_c, kept_r = np.empty((0, 2)), np.empty(0)
     for _ in range(rounds):
         c = rng.uniform(layout.bounds_lo[:2], layout.bounds_hi[:2], (3 * count, 2))
         r = rng.uniform(*radius_range, 3 * count)
-        ok = _disc_distance(c, layout.keep_out) - r >= _ZONE_RADIUS
-        if kept_r.size:
-            to_kept = np.hypot(c[:, None, 0] - kept_c[None, :, 0], c[:, None, 1] - kept_c[None, :, 1])
-            ok &= np.all(to_kept - r[:, None] - kept_r[None, :] >= sep, axis=1)
-        pair = np.hypot(c[:, None, 0] - c[None, :, 0], c[:, None, 1] - c[None, :, 1]) - r[:, None] - r[None, :]
-        ok &= ~np.any(np.tril(pair < sep, k=-1) & ok[None, :], axis=1)
+        ok = _thin(c, r, np.ascontiguousarray(layout.keep_out, dtype=np.float64), kept_c, kept_r, _ZONE_RADIUS, sep)
         take = np.flatnonzero(ok)[:count - kept_r.size]
         kept_c, kept_r = np.vstack([kept_c, c[take]]), np.concatenate([kept_r, r[take]])
     return kept_c, kept_r
+
+
+@numba.njit(cache=True)
+def _thin(c, r, keep_out, kept_c, kept_r, zone, sep):
+    """One round of ``_hard_core``: which candidate discs (centres c (n, 2), radii r) to keep. A candidate is
+    valid if its edge is ``zone`` from every keep-out point and ``sep`` from every kept disc; it is kept if
+    valid and ``sep`` from every earlier valid candidate. Distances are ``hypot(dx, dy) - r_i - r_j`` in
+    that order (the float64 results of the numpy formulation this kernel replaced)."""
+    n = r.shape[0]
+    valid = np.empty(n, np.bool_)
+    for i in range(n):
+        near = np.inf
+        for p in range(keep_out.shape[0]):
+            near = min(near, math.hypot(c[i, 0] - keep_out[p, 0], c[i, 1] - keep_out[p, 1]))
+        ok = near - r[i] >= zone
+        for j in range(kept_r.shape[0]):
+            if not ok:
+                break
+            ok = math.hypot(c[i, 0] - kept_c[j, 0], c[i, 1] - kept_c[j, 1]) - r[i] - kept_r[j] >= sep
+        valid[i] = ok
+    keep = valid.copy()
+    for i in range(n):
+        if not valid[i]:
+            continue
+        for j in range(i):
+            if valid[j] and math.hypot(c[i, 0] - c[j, 0], c[i, 1] - c[j, 1]) - r[i] - r[j] < sep:
+                keep[i] = False
+                break
+    return keep
 
 
 def _forest_2(rng, n_uavs, formation, spacing, difficulty):
