@@ -39,10 +39,6 @@ _FLOAT_MAX = np.finfo(np.float64).max
 _TIE_TOL = 1e-12  # relative: scores (and |w|) this close count as equal, so the tie rule decides
 
 
-FALLBACKS = ("brake", "clearest")
-"""``dwa_plan``'s choices when no sample is admissible."""
-
-
 @dataclass(frozen=True)
 class DWAConfig(Config):
     """Weights, horizon and the E8/E10/E11 switches of the DWA planner (spec (b), (c), Appendix A).
@@ -823,7 +819,7 @@ def _rotation_weight(cfg: DWAConfig, clearance_now: float, prev_alignment: float
 def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle_radius, *,
              vz_cmd: float = 0.0, lookahead=None, clearance_now: float = math.inf, movers_pos=None,
              movers_vel=None, v_ref: float | None = None, v_cap: float | None = None,
-             prev_alignment: float | None = None, drift=None, fallback: str = "brake") -> DWAResult:
+             prev_alignment: float | None = None, drift=None) -> DWAResult:
     """One DWA planning cycle: the best admissible (v, w) of the dynamic window (spec (b), (c)).
 
     state: (7,) row (x, y, z, psi, v, w, vz). goal, lookahead: (2,) or (3,); only x, y are used;
@@ -839,13 +835,7 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
     prev_alignment: c of the previous cycle's choice (E10 per_step, E11 alignment; None -> 1).
     drift: (2,) horizontal velocity (m/s) added to every rollout, e.g. a wind estimate (None: still air).
     If no sample is admissible, brakes: v = v_lo (= max(0, v0 - a_max dt) for v_min = 0), w = w0.
-    fallback: what to do when no sample is admissible: ``"brake"`` (above, spec (b10)), or ``"clearest"``: the
-    sample whose rollout (drift included) keeps the largest clearance to its end, static obstacles and movers
-    (gap minus R_uu) alike, ties to the first in v-major order (in wind a braking UAV drifts on: the least-bad
-    sample may fly clear instead) [X].
     """
-    if fallback not in FALLBACKS:
-        raise ValueError(f"fallback={fallback!r}: expected one of {FALLBACKS}")
     try:
         arrays = _plan_arrays(state, goal, lookahead, obstacles, obstacle_radius, movers_pos, movers_vel, False)
         checked = _valid_values(*arrays)
@@ -912,11 +902,6 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
     if pick >= 0:
         return DWAResult(vs.item(pick), ws.item(pick), True, int(np.count_nonzero(admissible)), score.item(pick),
                          endpoint[pick].copy(), clearance.item(pick), alignment.item(pick), candidates)
-    if fallback == "clearest":
-        _, _, _, _, exact, _, ends, aligns = run(v_lo, v_hi, w_lo, w_hi, True)
-        best = int(np.argmax(exact))
-        return DWAResult(vs.item(best), ws.item(best), False, 0, math.nan, ends[best].copy(), exact.item(best),
-                         aligns.item(best), candidates)
     brake_w = min(max(w0, w_lo), w_hi)
     _, _, _, _, brake_clearance, _, brake_end, brake_alignment = run(v_lo, v_lo, brake_w, brake_w, True)
     return DWAResult(v_lo, brake_w, False, 0, math.nan, brake_end[0].copy(), brake_clearance.item(0),

@@ -591,34 +591,3 @@ def test_drift_carries_the_rollouts():
     assert rest.size == 1 and not cand.admissible[rest[0]]          # hovering drifts 1.5 m into it
     with pytest.raises(ValueError, match="drift"):
         dwa_plan(s, LIM, cfg, (5.0, 0.0), behind, 0.1, drift=(math.nan, 0.0))
-
-
-def test_clearest_fallback_picks_the_sample_that_keeps_most_clearance_over_the_drift():
-    """``fallback="clearest"``: with nothing admissible (a UAV flying north at 0.3 m/s, a 0.4 m/s drift east
-    carries it 1.2 m onto a post 0.8 m east of it), the chosen sample is the one whose drifting rollout keeps the
-    largest minimum clearance, checked against rollouts integrated here with ``dynamics.integrate``; braking
-    (the default) keeps less; an unknown fallback is refused."""
-    cfg = DWAConfig.ablation("DWA")
-    s = state_row(v=0.3, psi=math.pi / 2)
-    post = np.array([[0.8, 0.0, 3.0]])
-    drift = (0.4, 0.0)
-    brake = dwa_plan(s, LIM, cfg, (0.0, 5.0), post, 0.1, drift=drift)
-    assert not brake.admissible and brake.v == pytest.approx(0.3 - LIM.a_max * LIM.dt)
-    best = dwa_plan(s, LIM, cfg, (0.0, 5.0), post, 0.1, drift=drift, fallback="clearest")
-    assert not best.admissible and best.n_admissible == 0
-    vs, ws = window_samples(0.3, 0.0, LIM, cfg)
-    n = round(cfg.T_p / LIM.dt)
-    worst = []
-    for v, w in zip(vs, ws):
-        x, y, psi, c = 0.0, 0.0, math.pi / 2, math.inf
-        for k in range(n):
-            x, y, _, psi = integrate(x, y, 3.0, psi, v, w, 0.0, LIM.dt)
-            c = min(c, math.hypot(x + drift[0] * (k + 1) * LIM.dt - 0.8, y + drift[1] * (k + 1) * LIM.dt)
-                    - 0.1 - LIM.r_uav)
-        worst.append(c)
-    i = int(np.argmax(worst))
-    assert (best.v, best.w) == (pytest.approx(vs[i]), pytest.approx(ws[i]))
-    assert best.clearance == pytest.approx(worst[i], abs=1e-9)
-    assert best.clearance > brake.clearance                        # it flies on, out of the drift's way
-    with pytest.raises(ValueError, match="fallback"):
-        dwa_plan(s, LIM, cfg, (0.0, 5.0), post, 0.1, fallback="hover")

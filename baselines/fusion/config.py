@@ -17,7 +17,6 @@ from ..vfh3d import VFHConfig
 WEIGHT_NAMES = ("alpha0", "beta", "gamma", "eps0", "k1", "k2", "k3")
 ASTAR_LAYERS = ("passable", "band")
 REJOIN_MODES = ("astar", "trail")
-WIND_FALLBACKS = ("brake", "hold", "clearest")
 
 
 @dataclass(frozen=True)
@@ -116,17 +115,6 @@ class ExpertConfig(Config):
                        past what the point's clearance covers. In still air it holds where it stopped [X]
     wind_tau           time constant (s) of the low-pass filter that estimates the wind from the UAV's own drift
                        (``rules.wind_estimate``: observed minus commanded motion) [X]
-    wind_fallback      with no admissible DWA sample in an estimated wind stronger than ``vane_wind``: ``"brake"``,
-                       DWA's braking of (b10), as in still air; ``"hold"``, the UAV holds the point where that
-                       began with ``rules.station_keep`` (nose into the wind, airspeed matching it); ``"clearest"``,
-                       DWA's sample whose drifting rollout keeps the largest clearance (``dwa_plan(fallback=
-                       "clearest")``). With "hold" and "clearest" the emergency escape of (g5) keeps the horizontal
-                       command instead of stopping: a hovering unicycle (v >= 0, 20 deg/s) cannot push back
-                       against a gust from behind or the side and drifts into what lies downwind [X]
-    wind_airspeed      in an estimated wind stronger than ``vane_wind``, away from a fixed target, a UAV does not
-                       slow below this factor times the wind speed while DWA's window holds an admissible sample
-                       that fast (``rules.wind_airspeed``): turning the ground track against a side gust needs
-                       airspeed; a UAV braking in clutter has none left (0: off) [X]
     wind_drift         DWA's rollouts drift with the estimated wind (``dwa_plan(drift=...)``): a sample that holds
                        still while the wind carries the UAV into an obstacle is inadmissible [X]
     park_turn          the parked leader turns in place (v = 0) to the heading nearest its own whose follower
@@ -182,8 +170,6 @@ class ExpertConfig(Config):
     hold_radius: float = 0.25
     k_hold: float = 0.5
     wind_tau: float = 1.0
-    wind_fallback: str = "hold"
-    wind_airspeed: float = 1.0
     hold_drift_time: float = 4.5
     hold_search: float = 4.0
     wind_drift: bool = True
@@ -207,7 +193,6 @@ class ExpertConfig(Config):
                                       "explore_unknown")},
         "astar_layer": one_of(ASTAR_LAYERS),
         "rejoin": one_of(REJOIN_MODES),
-        "wind_fallback": one_of(WIND_FALLBACKS),
         "dwa_map_level": integer(0, 4),
         "debounce": integer(1, 100),
         "trail_window": integer(1),
@@ -215,7 +200,7 @@ class ExpertConfig(Config):
                                             "column_hold", "vfh_neighbour_radius", "rejoin_distance", "dock_radius",
                                             "trail_spacing", "arrive_radius", "stuck_window", "gap_lookahead",
                                             "gap_depth", "gap_margin", "k_gap", "gap_speed", "leader_stopped_speed",
-                                            "hold_radius", "k_hold", "separation_margin", "wind_airspeed",
+                                            "hold_radius", "k_hold", "separation_margin",
                                             "hold_drift_time", "hold_search", "glide_slope", "wind_margin", "vane_wind", "approach_radius",
                                             "guard_clearance", "guard_speed")},
         "wind_tau": in_range(0.0, lo_open=True),

@@ -32,7 +32,7 @@ from ..vfh3d import VFHPlanner
 from .config import ExpertConfig
 from .kernels import (closest_approach, columns_without_gap, gap_altitude_kernel, in_sphere, open_level_way,
                       segment_clear, surface_clearance)
-from .rules import RULES, Command, Cycle, bearing_error, clamp, leader_parked, station_keep, wind_estimate, windy
+from .rules import RULES, Command, Cycle, bearing_error, clamp, leader_parked, station_keep, wind_estimate
 
 
 @dataclass
@@ -54,8 +54,7 @@ class _UAVMemory(PlannerMemory):
     wind: np.ndarray = field(default_factory=lambda: np.zeros(2))
     prev_pose: tuple | None = None
     hold_xy: np.ndarray | None = None
-    hold_clearance: float = 0.0
-    brake_xy: np.ndarray | None = None
+    hold_margin: float = 0.0
     cruise_z: float | None = None
 
 
@@ -149,8 +148,9 @@ class FusionExpert(OnboardPolicy):
         if target is None:                                      # unreachable: hold position safely
             self.diagnostics[view.agent] = {"mode": mem.mode, "stuck": True, "unreachable": True,
                                             "replans": mem.replans}
-            if mem.hold_xy is None or self._hold_margin(view, mem, cfg) > mem.hold_clearance:
-                mem.hold_xy, mem.hold_clearance = self._hold_point(view, mem, cfg)
+            margin = self._hold_margin(view, mem, cfg)
+            if mem.hold_xy is None or margin > mem.hold_margin + view.limits.r_safe:   # first, or the wind rose
+                mem.hold_xy, mem.hold_margin = self._hold_point(view, cfg, margin), margin
             cmd = station_keep(view, mem, cfg, mem.hold_xy, float(view.state[PSI]))
             return np.array([cmd.v, cmd.w, self._hold_altitude(view, cfg, z_slot)])
         mem.hold_xy = None
@@ -175,14 +175,15 @@ class FusionExpert(OnboardPolicy):
         estimated wind causes in ``hold_drift_time`` (the time to turn the nose into a gust from abeam)."""
         return view.limits.r_safe + cfg.hold_drift_time * math.hypot(mem.wind[0], mem.wind[1])
 
-    def _hold_point(self, view, mem: _UAVMemory, cfg: ExpertConfig) -> tuple[np.ndarray, float]:
-        """Where a UAV with no way to its goal holds, and that point's clearance: the nearest point (on a grid of
-        ``geofence_spacing`` within ``hold_search`` m) whose horizontal clearance to the own map's voxels near the
-        flight altitude and to the world's bounds is at least ``_hold_margin``, reached along a straight segment
-        clear by r_uav + r_safe; none: the clearest such point (its own position if no other is reachable)."""
+    @staticmethod
+    def _hold_point(view, cfg: ExpertConfig, margin: float) -> np.ndarray:
+        """Where a UAV with no way to its goal holds: the nearest point (on a grid of ``geofence_spacing`` within
+        ``hold_search`` m) whose horizontal clearance to the own map's voxels near the flight altitude and to the
+        world's bounds is at least ``margin``, reached along a straight segment clear by r_uav + r_safe; none: the
+        clearest such point (its own position if no other is reachable). It moves again only when the wind
+        has risen by r_safe / ``hold_drift_time`` since."""
         lim = view.limits
         pos = view.state[:3]
-        margin = self._hold_margin(view, mem, cfg)
         reach = cfg.hold_search + margin + lim.r_uav
         band = lim.r_uav + lim.r_safe + view.occupancy.resolution
         voxels, _ = view.occupancy.occupied_in_sphere(pos, reach + band)
@@ -196,14 +197,14 @@ class FusionExpert(OnboardPolicy):
         cand = np.column_stack([pos[0] + gx[inside], pos[1] + gy[inside], np.full(int(inside.sum()), pos[2])])
         cand = np.vstack([pos, cand])                                      # its own position first
         if len(points) == 0:
-            return pos[:2].copy(), math.inf
+            return pos[:2].copy()
         clear = np.sqrt(((cand[:, None, :2] - points[None, :, :2]) ** 2).sum(axis=2)).min(axis=1) - lim.r_uav
         dist = np.hypot(cand[:, 0] - pos[0], cand[:, 1] - pos[1])
         order = np.lexsort((dist, -np.minimum(clear, margin)))           # enough clearance first, then nearest
         for k in order:
             if k == 0 or segment_clear(points, pos, cand[k], lim.r_uav + lim.r_safe):
-                return cand[k, :2].copy(), float(clear[k])
-        return pos[:2].copy(), float(clear[0])
+                return cand[k, :2].copy()
+        return pos[:2].copy()
 
     @staticmethod
     def _hold_altitude(view, cfg: ExpertConfig, z_slot: float) -> float:
@@ -323,13 +324,12 @@ class FusionExpert(OnboardPolicy):
             radii = np.concatenate([radii, np.zeros(len(fence))])
         alive_pos, alive_vel = local.movers_pos[view.neighbour_alive], local.movers_vel[view.neighbour_alive]
         drift = mem.wind if cfg.wind_drift and mem.wind.any() else None    # the rollouts drift with the wind
-        fallback = "clearest" if cfg.wind_fallback == "clearest" and windy(mem, cfg) else "brake"
 
         def plan(vz):
             return self.dwa(s, lim, dwa_cfg, vertical.heading_goal, obstacles, radii, vz_cmd=vz,
                             lookahead=target.lookahead, clearance_now=clearance_now, movers_pos=alive_pos,
                             movers_vel=alive_vel, v_ref=target.v_ref, v_cap=vertical.v_cap,
-                            prev_alignment=mem.prev_alignment, drift=drift, fallback=fallback)
+                            prev_alignment=mem.prev_alignment, drift=drift)
 
         vz = vertical.vz
         res = plan(vz)

@@ -58,50 +58,16 @@ class Cycle(NamedTuple):
 # ---------------------------------------------------------------------- the rules, in order
 def braking_fallback(cmd: Command, c: Cycle) -> None:
     """(b10) and the stuck escape of (g4): with no admissible DWA sample, DWA brakes and the UAV turns toward
-    its heading goal [X]; after ``T_stuck`` s of this, 3D VFH+'s straight-up (down) cells pick a vertical escape.
-    [X] ``wind_fallback="hold"``: in an estimated wind stronger than ``vane_wind`` the UAV does not brake to a
-    hover, which the wind carries off (into whatever lies downwind), but holds the point where the fallback began
-    with ``station_keep``: nose into the wind, airspeed matching it. (``"clearest"``: DWA picked its fallback
-    sample over the drift; it stands.)"""
+    its heading goal [X]; after ``T_stuck`` s of this, 3D VFH+'s straight-up (down) cells pick a vertical escape."""
     mem, lim = c.mem, c.view.limits
     if c.dwa.admissible:
         mem.stuck_time = 0.0
-        mem.brake_xy = None
         return
     mem.stuck_time += lim.dt
     s = c.view.state
-    mode = c.cfg.wind_fallback if windy(mem, c.cfg) else "brake"
-    if mode == "brake":
-        cmd.w = turn_toward(s, c.heading_goal - s[:2], lim.w_max)
-    elif mode == "hold":
-        if mem.brake_xy is None:
-            mem.brake_xy = s[:2].copy()
-        hold = station_keep(c.view, mem, c.cfg, mem.brake_xy, float(s[PSI]))
-        cmd.v, cmd.w = hold.v, hold.w
+    cmd.w = turn_toward(s, c.heading_goal - s[:2], lim.w_max)
     if c.cfg.use_vfh and mem.stuck_time >= c.cfg.T_stuck and c.vfh is not None:
         cmd.vz = vertical_escape(c.vfh, lim)
-
-
-def wind_airspeed(cmd: Command, c: Cycle) -> None:
-    """[X] ``wind_airspeed``: in an estimated wind stronger than ``vane_wind``, away from a fixed target (farther than
-    ``dock_radius`` from DWA's goal), a UAV whose DWA choice is slower than ``wind_airspeed`` times the wind speed
-    takes the best-scoring admissible sample at least that fast, if the window holds one: a slow unicycle has no
-    lateral authority (turning the ground track needs airspeed), so a UAV that brakes in clutter is the one a
-    gust carries into an obstacle."""
-    cfg, mem = c.cfg, c.mem
-    if cfg.wind_airspeed <= 0.0 or not c.dwa.admissible or not windy(mem, cfg):
-        return
-    s = c.view.state
-    if c.docking or math.hypot(c.goal[0] - s[0], c.goal[1] - s[1]) <= cfg.dock_radius:
-        return
-    floor = min(c.view.limits.v_max, cfg.wind_airspeed * math.hypot(mem.wind[0], mem.wind[1]))
-    if cmd.v >= floor:
-        return
-    cand = c.dwa.candidates
-    fast = cand.admissible & (cand.v >= floor)
-    if fast.any():
-        best = int(np.argmax(np.where(fast, cand.score, -np.inf)))
-        cmd.v, cmd.w = float(cand.v[best]), float(cand.w[best])
 
 
 def dock_turn(cmd: Command, c: Cycle) -> None:
@@ -200,9 +166,7 @@ def vertical_separation(cmd: Command, c: Cycle) -> None:
 
 def emergency_escape(cmd: Command, c: Cycle) -> None:
     """(g5) emergency, with [X] ``lateral_emergency_to_dwa``: a voxel or neighbour inside 3D VFH+'s r_e stops the
-    UAV and moves it vertically away from the nearest voxel, unless that move closes on a neighbour (g6).
-    With [X] ``wind_fallback`` "hold" or "clearest", in an estimated wind stronger than ``vane_wind`` it does not stop (a stopped UAV drifts
-    with the wind): the horizontal command of the rules before stands (the wind hold, the drift guard)."""
+    UAV and moves it vertically away from the nearest voxel, unless that move closes on a neighbour (g6)."""
     if c.vfh is None or not c.vfh.emergency:
         return
     view, cfg = c.view, c.cfg
@@ -212,15 +176,13 @@ def emergency_escape(cmd: Command, c: Cycle) -> None:
     vz_away = away_vertically(pos, view.occupancy, r_e, lim, cfg.lateral_emergency_to_dwa)
     if vz_away is None:
         return
-    cmd.vz = vz_away
-    if cfg.wind_fallback == "brake" or not windy(c.mem, cfg):
-        cmd.v = 0.0                     # in wind, stopping is drifting: the horizontal command stands
+    cmd.v, cmd.vz = 0.0, vz_away
     alive = view.neighbour_alive
     if closes_on_movers(pos, cmd.vz, c.movers_pos[alive], c.movers_vel[alive], cfg.dwa, lim):
         cmd.vz = 0.0                    # the escape would fly into a neighbour (above or below)
 
 
-RULES = (braking_fallback, wind_airspeed, dock_turn, dock_approach, reverse_turn, drift_guard, vertical_separation, emergency_escape)
+RULES = (braking_fallback, dock_turn, dock_approach, reverse_turn, drift_guard, vertical_separation, emergency_escape)
 """The rules after DWA, in the order they act on the command (later ones override earlier ones)."""
 
 
@@ -292,11 +254,6 @@ def bearing_error(state, direction) -> float:
 def turn_toward(state, direction, w_max: float) -> float:
     """The yaw rate toward the horizontal ``direction``: its bearing error, limited to +/- w_max."""
     return clamp(bearing_error(state, direction), -w_max, w_max)
-
-
-def windy(mem, cfg) -> bool:
-    """Whether the UAV's wind estimate ``mem.wind`` is stronger than ``vane_wind``."""
-    return math.hypot(mem.wind[0], mem.wind[1]) > cfg.vane_wind
 
 
 def leader_parked(view, cfg) -> bool:
