@@ -88,9 +88,9 @@ def main() -> None:
     args = parser.parse_args()
     cfg = ExpertConfig()
     lim = parallel_env(scenario=field()).unwrapped.config.uav
-    print(f"| preset | wind > v_max ({lim.v_max:g} m/s), share of time | wind > 0.5 v_max | largest excursion holding a "
-          f"point for {args.seconds:g} s, median / p95 (m): unicycle, own wind estimate | unicycle, exact wind | "
-          "ideal holonomic holder |")
+    print(f"| preset | wind > v_max ({lim.v_max:g} m/s), share of time | wind > 0.5 v_max | largest excursion "
+          f"holding a point for {args.seconds:g} s, median / p95 (m): unicycle, own wind estimate | unicycle, "
+          "exact wind | ideal holonomic holder |")
     print("|---|---|---|---|---|---|")
     for preset in ("breeze", "gusty"):
         own = [hold(preset, s, args.seconds, False)[0] for s in range(args.seeds)]
