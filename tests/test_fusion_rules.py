@@ -246,3 +246,24 @@ def test_injected_planners_are_the_ones_called():
 def test_planners_must_be_callable():
     with pytest.raises(ValueError, match="dwa: expected a callable"):
         FusionExpert(dwa="idwa")
+
+
+def test_hold_point_keeps_the_clearance_a_gust_takes_to_turn_into():
+    """A UAV with no way to its goal 1 m from the world's x = 0 bound (0.7 m clearance) holds where it is in still
+    air (r_safe suffices); in a 0.25 m/s wind it needs r_safe + hold_drift_time x 0.25 = 1.325 m and holds at the
+    nearest grid point that has it, 0.8 m farther in (grid ``geofence_spacing`` = 0.4 m); a post there moves it on,
+    and with nowhere clear enough it holds at the clearest point it can reach."""
+    def holding(wind, voxels=()):
+        v = view(state=(1.0, 3.0, 3.0, 0.0, 0.0, 0.0, 0.0), voxels=voxels)
+        v.bounds_lo, v.bounds_hi = np.array([0.0, 0.0, 0.0]), np.array([20.0, 6.0, 12.0])
+        mem = _UAVMemory(wind=np.array(wind))
+        return FusionExpert._hold_point(v, CFG, FusionExpert._hold_margin(v, mem, CFG))
+    assert holding([0.0, 0.0]).tolist() == [1.0, 3.0]
+    margin = LIM.r_safe + CFG.hold_drift_time * 0.25
+    assert margin == pytest.approx(1.325)
+    assert holding([0.25, 0.0]) == pytest.approx([1.8, 3.0])
+    xy = holding([0.25, 0.0], voxels=[[2.2, 3.0, 3.0]])
+    assert np.hypot(xy[0] - 2.2, xy[1] - 3.0) - LIM.r_uav >= margin and xy[0] - LIM.r_uav >= margin
+    assert np.hypot(xy[0] - 1.0, xy[1] - 3.0) <= CFG.hold_search
+    xy = holding([1.0, 0.0])                       # 4.7 m needed, 2.7 m at best in a 6 m wide world: the nearest
+    assert xy == pytest.approx([3.0, 3.0])           # point as clear from x = 0 as from the side bounds

@@ -107,6 +107,12 @@ class ExpertConfig(Config):
                        (nose toward it, speed |.| cos(bearing error)); within ``hold_radius`` with that below
                        ``vane_wind`` it stops and turns to its park heading. A UAV hovering at v = 0 otherwise
                        drifts with the wind into whatever is downwind [X]
+    hold_drift_time, hold_search  a UAV with no way to its goal holds the nearest point within ``hold_search`` m
+                       (reached along a clear straight segment) whose horizontal clearance to its own map near the
+                       flight altitude and to the world's bounds is at least r_safe plus the drift the estimated wind
+                       causes in ``hold_drift_time`` s (default: a quarter turn at 20 deg/s, the time to bring the
+                       nose into a gust from abeam); none: the clearest such point. It moves on when the wind rises
+                       past what the point's clearance covers. In still air it holds where it stopped [X]
     wind_tau           time constant (s) of the low-pass filter that estimates the wind from the UAV's own drift
                        (``rules.wind_estimate``: observed minus commanded motion) [X]
     wind_drift         DWA's rollouts drift with the estimated wind (``dwa_plan(drift=...)``): a sample that holds
@@ -164,6 +170,8 @@ class ExpertConfig(Config):
     hold_radius: float = 0.25
     k_hold: float = 0.5
     wind_tau: float = 1.0
+    hold_drift_time: float = 4.5
+    hold_search: float = 4.0
     wind_drift: bool = True
     explore_unknown: bool = True
     dock_approach: bool = True
@@ -192,7 +200,9 @@ class ExpertConfig(Config):
                                             "column_hold", "vfh_neighbour_radius", "rejoin_distance", "dock_radius",
                                             "trail_spacing", "arrive_radius", "stuck_window", "gap_lookahead",
                                             "gap_depth", "gap_margin", "k_gap", "gap_speed", "leader_stopped_speed",
-                                            "hold_radius", "k_hold", "separation_margin", "glide_slope", "wind_margin", "vane_wind", "approach_radius",
+                                            "hold_radius", "k_hold", "separation_margin",
+                                            "hold_drift_time", "hold_search", "glide_slope", "wind_margin", "vane_wind",
+                                            "approach_radius",
                                             "guard_clearance", "guard_speed")},
         "wind_tau": in_range(0.0, lo_open=True),
         "leader_speed_cap": in_range(0.0, 1.0, lo_open=True),

@@ -54,6 +54,7 @@ class _UAVMemory(PlannerMemory):
     wind: np.ndarray = field(default_factory=lambda: np.zeros(2))
     prev_pose: tuple | None = None
     hold_xy: np.ndarray | None = None
+    hold_margin: float = 0.0
     cruise_z: float | None = None
 
 
@@ -147,8 +148,9 @@ class FusionExpert(OnboardPolicy):
         if target is None:                                      # unreachable: hold position safely
             self.diagnostics[view.agent] = {"mode": mem.mode, "stuck": True, "unreachable": True,
                                             "replans": mem.replans}
-            if mem.hold_xy is None:
-                mem.hold_xy = view.state[:2].copy()
+            margin = self._hold_margin(view, mem, cfg)
+            if mem.hold_xy is None or margin > mem.hold_margin + view.limits.r_safe:   # first, or the wind rose
+                mem.hold_xy, mem.hold_margin = self._hold_point(view, cfg, margin), margin
             cmd = station_keep(view, mem, cfg, mem.hold_xy, float(view.state[PSI]))
             return np.array([cmd.v, cmd.w, self._hold_altitude(view, cfg, z_slot)])
         mem.hold_xy = None
@@ -166,6 +168,43 @@ class FusionExpert(OnboardPolicy):
             "replans": mem.replans, "path_found": mem.path_found, "column": t < mem.column_until,
             "clearance": clearance_now}
         return cmd.array()
+
+    @staticmethod
+    def _hold_margin(view, mem: _UAVMemory, cfg: ExpertConfig) -> float:
+        """[X] ``hold_drift_time``: the horizontal clearance a UAV holding a point needs: r_safe plus the drift the
+        estimated wind causes in ``hold_drift_time`` (the time to turn the nose into a gust from abeam)."""
+        return view.limits.r_safe + cfg.hold_drift_time * math.hypot(mem.wind[0], mem.wind[1])
+
+    @staticmethod
+    def _hold_point(view, cfg: ExpertConfig, margin: float) -> np.ndarray:
+        """Where a UAV with no way to its goal holds: the nearest point (on a grid of ``geofence_spacing`` within
+        ``hold_search`` m) whose horizontal clearance to the own map's voxels near the flight altitude and to the
+        world's bounds is at least ``margin``, reached along a straight segment clear by r_uav + r_safe; none: the
+        clearest such point (its own position if no other is reachable). It moves again only when the wind
+        has risen by r_safe / ``hold_drift_time`` since."""
+        lim = view.limits
+        pos = view.state[:3]
+        reach = cfg.hold_search + margin + lim.r_uav
+        band = lim.r_uav + lim.r_safe + view.occupancy.resolution
+        voxels, _ = view.occupancy.occupied_in_sphere(pos, reach + band)
+        near = project_to_altitude(voxels, pos[2], band)
+        points = np.concatenate([near, geofence_points(pos, reach, view.bounds_lo, view.bounds_hi,
+                                                       cfg.geofence_spacing)])
+        step = cfg.geofence_spacing
+        axis = np.arange(-cfg.hold_search, cfg.hold_search + step / 2, step)
+        gx, gy = np.meshgrid(axis, axis, indexing="ij")
+        inside = gx ** 2 + gy ** 2 <= cfg.hold_search ** 2
+        cand = np.column_stack([pos[0] + gx[inside], pos[1] + gy[inside], np.full(int(inside.sum()), pos[2])])
+        cand = np.vstack([pos, cand])                                      # its own position first
+        if len(points) == 0:
+            return pos[:2].copy()
+        clear = np.sqrt(((cand[:, None, :2] - points[None, :, :2]) ** 2).sum(axis=2)).min(axis=1) - lim.r_uav
+        dist = np.hypot(cand[:, 0] - pos[0], cand[:, 1] - pos[1])
+        order = np.lexsort((dist, -np.minimum(clear, margin)))           # enough clearance first, then nearest
+        for k in order:
+            if k == 0 or segment_clear(points, pos, cand[k], lim.r_uav + lim.r_safe):
+                return cand[k, :2].copy()
+        return pos[:2].copy()
 
     @staticmethod
     def _hold_altitude(view, cfg: ExpertConfig, z_slot: float) -> float:
