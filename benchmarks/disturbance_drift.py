@@ -20,11 +20,11 @@ from uavform_env.scenarios import Mission, Scenario
 TIMES = (2.0, 5.0, 10.0)
 
 
-def field() -> Scenario:
+def field(n_uavs: int = 2) -> Scenario:
     return Scenario(name="open", version=1, seed=None, bounds_lo=(0.0, 0.0, 0.0), bounds_hi=(60.0, 60.0, 12.0),
                     resolution=0.2, obstacles=(),
                     mission=Mission(start=(30.0, 30.0, 3.0), goal=(50.0, 30.0, 3.0), start_heading=0.0,
-                                    formation="line", spacing=2.0, n_uavs=2))
+                                    formation="line", spacing=2.0, n_uavs=n_uavs))
 
 
 def drift(preset: str, seeds: int) -> np.ndarray:

@@ -198,6 +198,7 @@ class FormationEnv(ParallelEnv):
         self.crash_cause = np.zeros(n, np.int64)  # index into CRASH_CAUSES
         self.end_reason = self._first_crash = 0  # indices into END_REASONS
         self.prev_actions = np.zeros((n, 3), np.float32)
+        self.air = np.zeros((n, 3))   # the wind (m/s) where each UAV was at the last step: gust plus mean
         d = cfg.disturbance
         self._gusts = (GustField(self._wind_rng, d.wind_std, d.wind_tau, d.wind_length, GUST_MODES, d.wind_vertical)
                        if d.wind_std > 0 else None)
@@ -332,7 +333,8 @@ class FormationEnv(ParallelEnv):
         if not d.windy:
             return
         # The gust field where each UAV is, plus the steady mean wind, integrated as a position disturbance.
-        air = np.zeros((self.n_uavs, 3))
+        air = self.air
+        air[:] = 0.0
         air[:, :2] = d.wind_mean
         if self._gusts is not None:
             self._gusts.advance(dt)
