@@ -374,16 +374,25 @@ class FusionExpert(OnboardPolicy):
         if blocked is None:
             blocked = self._blocked_raster(view, cfg)
         start, goal = np.clip(view.state[:2], *self._raster_box()), np.clip(goal_xy, *self._raster_box())
-        path = plan_path(blocked, self.raster, start, goal, lim.r_uav + lim.r_safe, cfg.astar)
+        path = self._search(blocked, start, goal, lim, cfg)
         exploring = t - mem.last_progress_time < cfg.stuck_window       # not yet stuck: look at the unseen
         if (path is None and exploring and cfg.explore_unknown and cfg.astar_layer == "passable"
                 and view.prior.kind == "none"):
-            path = plan_path(self._blocked_raster(view, cfg, seen=False), self.raster, start, goal,
-                             lim.r_uav + lim.r_safe, cfg.astar)       # no known way: try the unseen ones
+            path = self._search(self._blocked_raster(view, cfg, seen=False), start, goal, lim, cfg)   # the unseen ways
         mem.path, mem.path_found, mem.plan_goal = path, path is not None, np.array(goal_xy, dtype=np.float64)
         mem.last_plan_time = t
         mem.replans += 1
         return path
+
+    def _search(self, blocked, start, goal, lim, cfg: ExpertConfig) -> GlobalPath | None:
+        """A* on ``blocked`` inflated by r_uav + r_safe + ``path_margin`` (a path that keeps off walls, along which DWA
+        need not crawl), else, when only a narrower way exists, by r_uav + r_safe alone."""
+        h_b = lim.r_uav + lim.r_safe
+        for radius in dict.fromkeys((h_b + cfg.path_margin, h_b)):
+            path = plan_path(blocked, self.raster, start, goal, radius, cfg.astar)
+            if path is not None:
+                return path
+        return None
 
     def _raster_box(self):
         lo = np.asarray(self.raster.origin) + 1e-6
