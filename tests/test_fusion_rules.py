@@ -2,6 +2,7 @@
 on a constructed command record; and the planners injected into the controller."""
 
 import math
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -79,7 +80,7 @@ def test_dock_turn_turns_the_leader_in_place_toward_a_goal_abeam():
     dock_turn(cmd, cycle(view(goal=(0.5, -1.0, 3.0))))              # 63 degrees right, 1.1 m away
     assert (cmd.v, cmd.w, cmd.turning) == (0.0, -W_MAX, True)
     far = Command(0.3, 0.0, 0.0)
-    dock_turn(far, cycle(view(goal=(0.0, 3.0, 3.0))))               # abeam but beyond dock_radius
+    dock_turn(far, cycle(view(goal=(0.0, 5.0, 3.0))))               # abeam but beyond dock_radius
     assert (far.v, far.turning) == (0.3, False)
 
 
@@ -246,3 +247,34 @@ def test_injected_planners_are_the_ones_called():
 def test_planners_must_be_callable():
     with pytest.raises(ValueError, match="dwa: expected a callable"):
         FusionExpert(dwa="idwa")
+
+
+def _wall_clearance(path, blocked, raster):
+    """The smallest distance from a path's points to the centres of the blocked cells."""
+    centres = (np.argwhere(blocked) + 0.5) * raster.res + np.asarray(raster.origin)
+    return float(np.min(np.linalg.norm(path.points[:, None, :] - centres[None], axis=2)))
+
+
+def test_search_keeps_path_margin_off_walls_and_falls_back_to_a_narrow_way():
+    from baselines.astar import Raster, plan_path
+    raster = Raster((0.0, 0.0), CFG.astar.res_g, (40, 20))
+    expert = FusionExpert()
+    expert.raster = raster
+    h_b = LIM.r_uav + LIM.r_safe
+    start, goal = np.array([2.0, 2.0]), np.array([18.0, 2.0])
+    wall = np.zeros(raster.shape, bool)
+    wall[20, :12] = True                                             # a wall from y = 0 to 6 m, open above
+    kept = expert._search(wall, start, goal, LIM, CFG)
+    plain = plan_path(wall, raster, start, goal, h_b, CFG.astar)
+    assert _wall_clearance(kept, wall, raster) > h_b + CFG.path_margin                 # 1.29 m
+    assert _wall_clearance(plain, wall, raster) < h_b + CFG.path_margin                # (d1) alone: 0.87 m
+    door = np.zeros(raster.shape, bool)
+    door[20, :] = True
+    door[20, 9:12] = False                                           # a 1.5 m door: too narrow for the margin
+    assert plan_path(door, raster, start, goal, h_b + CFG.path_margin, CFG.astar) is None
+    narrow = expert._search(door, start, goal, LIM, CFG)
+    at_wall = narrow.points[np.abs(narrow.points[:, 0] - 10.25) < 0.3]
+    assert len(at_wall) and np.all((at_wall[:, 1] > 4.5) & (at_wall[:, 1] < 6.0))   # through the door
+    assert expert._search(door, start, goal, LIM, replace(CFG, path_margin=0.0)) is not None
+    door[20, 10] = True                                              # closed: no path at all
+    assert expert._search(door, start, goal, LIM, CFG) is None
