@@ -113,10 +113,12 @@ class ExpertConfig(Config):
                        (``rules.wind_estimate``: observed minus commanded motion) [X]
     wind_drift         DWA's rollouts drift with the estimated wind (``dwa_plan(drift=...)``): a sample that holds
                        still while the wind carries the UAV into an obstacle is inadmissible [X]
-    path_margin        A* (the leader's route, a follower's rejoin path) inflates its raster by r_uav + r_safe plus
-                       this margin, and by r_uav + r_safe alone only when no path keeps the margin: a path one
-                       cell off a wall held the leader 0.2 m from it, where DWA's braking-distance admissibility
-                       let it crawl along the wall at 0.1-0.3 m/s [X]
+    path_margin, margin_detour  A* (the leader's route, a follower's rejoin path) takes the path on its raster
+                       inflated by r_uav + r_safe plus ``path_margin`` when that path is at most ``margin_detour`` m
+                       longer than the one inflated by r_uav + r_safe alone (d1): a path one cell off a wall held
+                       the leader 0.2 m from it, where DWA's braking-distance admissibility let it crawl along
+                       the wall at 0.1-0.3 m/s; without the detour bound a follower preferred an unseen way round
+                       a wall's far end to the known 2.6 m opening in it [X]
     park_turn          the parked leader turns in place (v = 0) to the heading nearest its own whose follower
                        slots are all free in its own map and inside the world bounds: parked at the goal, it
                        can otherwise leave a slot inside an obstacle, and the formation can never close [X]
@@ -173,6 +175,7 @@ class ExpertConfig(Config):
     wind_drift: bool = True
     explore_unknown: bool = True
     path_margin: float = 0.5
+    margin_detour: float = 2.0
     dock_approach: bool = True
     vane_wind: float = 0.1
     approach_radius: float = 3.0
@@ -200,7 +203,7 @@ class ExpertConfig(Config):
                                             "trail_spacing", "arrive_radius", "stuck_window", "gap_lookahead",
                                             "gap_depth", "gap_margin", "k_gap", "gap_speed", "leader_stopped_speed",
                                             "hold_radius", "k_hold", "separation_margin", "glide_slope", "wind_margin", "vane_wind", "approach_radius",
-                                            "guard_clearance", "guard_speed", "path_margin")},
+                                            "guard_clearance", "guard_speed", "path_margin", "margin_detour")},
         "wind_tau": in_range(0.0, lo_open=True),
         "leader_speed_cap": in_range(0.0, 1.0, lo_open=True),
         "yield_factor": in_range(0.0, 1.0),

@@ -385,14 +385,14 @@ class FusionExpert(OnboardPolicy):
         return path
 
     def _search(self, blocked, start, goal, lim, cfg: ExpertConfig) -> GlobalPath | None:
-        """A* on ``blocked`` inflated by r_uav + r_safe + ``path_margin`` (a path that keeps off walls, along which DWA
-        need not crawl), else, when only a narrower way exists, by r_uav + r_safe alone."""
+        """A* on ``blocked`` inflated by r_uav + r_safe (d1); the path on the raster inflated by ``path_margin`` more
+        (it keeps off walls, along which DWA crawls) instead when one exists at most ``margin_detour`` m longer."""
         h_b = lim.r_uav + lim.r_safe
-        for radius in dict.fromkeys((h_b + cfg.path_margin, h_b)):
-            path = plan_path(blocked, self.raster, start, goal, radius, cfg.astar)
-            if path is not None:
-                return path
-        return None
+        path = plan_path(blocked, self.raster, start, goal, h_b, cfg.astar)
+        if path is None or cfg.path_margin <= 0.0:
+            return path
+        wide = plan_path(blocked, self.raster, start, goal, h_b + cfg.path_margin, cfg.astar)
+        return wide if wide is not None and wide.length <= path.length + cfg.margin_detour else path
 
     def _raster_box(self):
         lo = np.asarray(self.raster.origin) + 1e-6
