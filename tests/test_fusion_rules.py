@@ -2,7 +2,6 @@
 on a constructed command record; and the planners injected into the controller."""
 
 import math
-from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -264,7 +263,7 @@ def test_search_keeps_path_margin_off_walls_and_falls_back_to_a_narrow_way():
     start, goal = np.array([2.0, 2.0]), np.array([18.0, 2.0])
     wall = np.zeros(raster.shape, bool)
     wall[20, :12] = True                                             # a wall from y = 0 to 6 m, open above
-    kept = expert._search(wall, start, goal, LIM, CFG)
+    kept = expert._search(wall, start, goal, LIM, CFG.path_margin, CFG.margin_detour)
     plain = plan_path(wall, raster, start, goal, h_b, CFG.astar)
     assert _wall_clearance(kept, wall, raster) > h_b + CFG.path_margin                 # 1.29 m
     assert _wall_clearance(plain, wall, raster) < h_b + CFG.path_margin                # (d1) alone: 0.87 m
@@ -272,9 +271,17 @@ def test_search_keeps_path_margin_off_walls_and_falls_back_to_a_narrow_way():
     door[20, :] = True
     door[20, 9:12] = False                                           # a 1.5 m door: too narrow for the margin
     assert plan_path(door, raster, start, goal, h_b + CFG.path_margin, CFG.astar) is None
-    narrow = expert._search(door, start, goal, LIM, CFG)
+    narrow = expert._search(door, start, goal, LIM, CFG.path_margin, CFG.margin_detour)
     at_wall = narrow.points[np.abs(narrow.points[:, 0] - 10.25) < 0.3]
     assert len(at_wall) and np.all((at_wall[:, 1] > 4.5) & (at_wall[:, 1] < 6.0))   # through the door
-    assert expert._search(door, start, goal, LIM, replace(CFG, path_margin=0.0)) is not None
+    assert expert._search(door, start, goal, LIM, 0.0, CFG.margin_detour) is not None
     door[20, 10] = True                                              # closed: no path at all
-    assert expert._search(door, start, goal, LIM, CFG) is None
+    assert expert._search(door, start, goal, LIM, CFG.path_margin, CFG.margin_detour) is None
+    expert.raster = Raster((0.0, 0.0), CFG.astar.res_g, (40, 30))
+    detour = np.zeros(expert.raster.shape, bool)
+    detour[20, :25] = True
+    detour[20, 9:12] = False                                         # the narrow door, and a wide way 12 m longer
+    through_door = expert._search(detour, start, goal, LIM, CFG.path_margin, CFG.margin_detour)
+    round_wall = expert._search(detour, start, goal, LIM, CFG.path_margin, math.inf)
+    assert through_door.points[:, 1].max() < 6.0 and round_wall.points[:, 1].max() > 12.5
+    assert round_wall.length > through_door.length + CFG.margin_detour

@@ -113,12 +113,13 @@ class ExpertConfig(Config):
                        (``rules.wind_estimate``: observed minus commanded motion) [X]
     wind_drift         DWA's rollouts drift with the estimated wind (``dwa_plan(drift=...)``): a sample that holds
                        still while the wind carries the UAV into an obstacle is inadmissible [X]
-    path_margin, margin_detour  A* (the leader's route, a follower's rejoin path) takes the path on its raster
+    path_margin, margin_detour  the leader's A* route is the path on its raster
                        inflated by r_uav + r_safe plus ``path_margin`` when that path is at most ``margin_detour`` m
                        longer than the one inflated by r_uav + r_safe alone (d1): a path one cell off a wall held
                        the leader 0.2 m from it, where DWA's braking-distance admissibility let it crawl along
                        the wall at 0.1-0.3 m/s; without the detour bound a follower preferred an unseen way round
-                       a wall's far end to the known 2.6 m opening in it [X]
+                       a wall's far end to the known 2.6 m opening in it. Followers' rejoin paths keep (d1) alone:
+                       with the margin, followers of 10-UAV forest formations lost their way to their slots [X]
     park_turn          the parked leader turns in place (v = 0) to the heading nearest its own whose follower
                        slots are all free in its own map and inside the world bounds: parked at the goal, it
                        can otherwise leave a slot inside an obstacle, and the formation can never close [X]
