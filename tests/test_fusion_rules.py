@@ -285,3 +285,6 @@ def test_search_keeps_path_margin_off_walls_and_falls_back_to_a_narrow_way():
     round_wall = expert._search(detour, start, goal, LIM, CFG.path_margin, math.inf)
     assert through_door.points[:, 1].max() < 6.0 and round_wall.points[:, 1].max() > 12.5
     assert round_wall.length > through_door.length + CFG.margin_detour
+    near_wall = np.array([10.0 - 0.75, 2.0])                        # 0.75 m before the wall: free for (d1) only
+    to_wall = expert._search(detour, start, near_wall, LIM, CFG.path_margin, CFG.margin_detour)
+    assert np.allclose(to_wall.points[-1], [9.25, 2.25])             # ends in the goal's cell, not snapped off

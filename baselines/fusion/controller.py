@@ -388,13 +388,16 @@ class FusionExpert(OnboardPolicy):
 
     def _search(self, blocked, start, goal, lim, margin: float, detour: float) -> GlobalPath | None:
         """A* on ``blocked`` inflated by r_uav + r_safe (d1); the path on the raster inflated by ``margin`` more (it
-        keeps off walls, along which DWA crawls) instead when one exists at most ``detour`` m longer."""
+        keeps off walls, along which DWA crawls) instead when one exists at most ``detour`` m longer and ends in the
+        same cell (a goal near a wall is not moved away by the wider inflation's snapping)."""
         h_b = lim.r_uav + lim.r_safe
         path = plan_path(blocked, self.raster, start, goal, h_b, self.config.astar)
         if path is None or margin <= 0.0:
             return path
         wide = plan_path(blocked, self.raster, start, goal, h_b + margin, self.config.astar)
-        return wide if wide is not None and wide.length <= path.length + detour else path
+        if wide is None or wide.length > path.length + detour or not np.array_equal(wide.points[-1], path.points[-1]):
+            return path
+        return wide
 
     def _raster_box(self):
         lo = np.asarray(self.raster.origin) + 1e-6
