@@ -79,7 +79,7 @@ def test_dock_turn_turns_the_leader_in_place_toward_a_goal_abeam():
     dock_turn(cmd, cycle(view(goal=(0.5, -1.0, 3.0))))              # 63 degrees right, 1.1 m away
     assert (cmd.v, cmd.w, cmd.turning) == (0.0, -W_MAX, True)
     far = Command(0.3, 0.0, 0.0)
-    dock_turn(far, cycle(view(goal=(0.0, 3.0, 3.0))))               # abeam but beyond dock_radius
+    dock_turn(far, cycle(view(goal=(0.0, 5.0, 3.0))))               # abeam but beyond dock_radius
     assert (far.v, far.turning) == (0.3, False)
 
 
@@ -267,3 +267,45 @@ def test_hold_point_keeps_the_clearance_a_gust_takes_to_turn_into():
     assert np.hypot(xy[0] - 1.0, xy[1] - 3.0) <= CFG.hold_search
     xy = holding([1.0, 0.0])                       # 4.7 m needed, 2.7 m at best in a 6 m wide world: the nearest
     assert xy == pytest.approx([3.0, 3.0])           # point as clear from x = 0 as from the side bounds
+
+
+def _wall_clearance(path, blocked, raster):
+    """The smallest distance from a path's points to the centres of the blocked cells."""
+    centres = (np.argwhere(blocked) + 0.5) * raster.res + np.asarray(raster.origin)
+    return float(np.min(np.linalg.norm(path.points[:, None, :] - centres[None], axis=2)))
+
+
+def test_search_keeps_path_margin_off_walls_and_falls_back_to_a_narrow_way():
+    from baselines.astar import Raster, plan_path
+    raster = Raster((0.0, 0.0), CFG.astar.res_g, (40, 20))
+    expert = FusionExpert()
+    expert.raster = raster
+    h_b = LIM.r_uav + LIM.r_safe
+    start, goal = np.array([2.0, 2.0]), np.array([18.0, 2.0])
+    wall = np.zeros(raster.shape, bool)
+    wall[20, :12] = True                                             # a wall from y = 0 to 6 m, open above
+    kept = expert._search(wall, start, goal, LIM, CFG.path_margin, CFG.margin_detour)
+    plain = plan_path(wall, raster, start, goal, h_b, CFG.astar)
+    assert _wall_clearance(kept, wall, raster) > h_b + CFG.path_margin                 # 1.29 m
+    assert _wall_clearance(plain, wall, raster) < h_b + CFG.path_margin                # (d1) alone: 0.87 m
+    door = np.zeros(raster.shape, bool)
+    door[20, :] = True
+    door[20, 9:12] = False                                           # a 1.5 m door: too narrow for the margin
+    assert plan_path(door, raster, start, goal, h_b + CFG.path_margin, CFG.astar) is None
+    narrow = expert._search(door, start, goal, LIM, CFG.path_margin, CFG.margin_detour)
+    at_wall = narrow.points[np.abs(narrow.points[:, 0] - 10.25) < 0.3]
+    assert len(at_wall) and np.all((at_wall[:, 1] > 4.5) & (at_wall[:, 1] < 6.0))   # through the door
+    assert expert._search(door, start, goal, LIM, 0.0, CFG.margin_detour) is not None
+    door[20, 10] = True                                              # closed: no path at all
+    assert expert._search(door, start, goal, LIM, CFG.path_margin, CFG.margin_detour) is None
+    expert.raster = Raster((0.0, 0.0), CFG.astar.res_g, (40, 30))
+    detour = np.zeros(expert.raster.shape, bool)
+    detour[20, :25] = True
+    detour[20, 9:12] = False                                         # the narrow door, and a wide way 12 m longer
+    through_door = expert._search(detour, start, goal, LIM, CFG.path_margin, CFG.margin_detour)
+    round_wall = expert._search(detour, start, goal, LIM, CFG.path_margin, math.inf)
+    assert through_door.points[:, 1].max() < 6.0 and round_wall.points[:, 1].max() > 12.5
+    assert round_wall.length > through_door.length + CFG.margin_detour
+    near_wall = np.array([10.0 - 0.75, 2.0])                        # 0.75 m before the wall: free for (d1) only
+    to_wall = expert._search(detour, start, near_wall, LIM, CFG.path_margin, CFG.margin_detour)
+    assert np.allclose(to_wall.points[-1], [9.25, 2.25])             # ends in the goal's cell, not snapped off

@@ -55,7 +55,9 @@ class ExpertConfig(Config):
                        (a follower circled a whole wall's side to reach a point behind it) [X]
     dock_radius        the leader, within this distance of the goal with the goal more than ``dock_turn_angle`` off
                        its nose, brakes and turns in place toward it: DWA otherwise flies past a goal abeam at
-                       0.5 m and parks against whatever lies beyond (the world's bound) [X]
+                       0.5 m and parks against whatever lies beyond (the world's bound). 4 m, not 1.5 m: after a
+                       dog-leg's last door the goal came up 3-5 m abeam and DWA (its rotation cost keeps the
+                       turn gentle) circled it at 0.6 m/s on a 7 m arc until the time-out [X]
     e0, e1, min_leader_scale  leader formation feedback of (g2): its speed cap scales from 1 at a mean follower
                        error e0 down to min_leader_scale at e1 [D: the spec's 1 m, 3 m, 0.3 held a forest
                        formation, which is always stretched, at 0.24 m/s]
@@ -117,6 +119,13 @@ class ExpertConfig(Config):
                        (``rules.wind_estimate``: observed minus commanded motion) [X]
     wind_drift         DWA's rollouts drift with the estimated wind (``dwa_plan(drift=...)``): a sample that holds
                        still while the wind carries the UAV into an obstacle is inadmissible [X]
+    path_margin, margin_detour  the leader's A* route is the path on its raster
+                       inflated by r_uav + r_safe plus ``path_margin`` when that path is at most ``margin_detour`` m
+                       longer than the one inflated by r_uav + r_safe alone (d1): a path one cell off a wall held
+                       the leader 0.2 m from it, where DWA's braking-distance admissibility let it crawl along
+                       the wall at 0.1-0.3 m/s; without the detour bound a follower preferred an unseen way round
+                       a wall's far end to the known 2.6 m opening in it. Followers' rejoin paths keep (d1) alone:
+                       with the margin, followers of 10-UAV forest formations lost their way to their slots [X]
     park_turn          the parked leader turns in place (v = 0) to the heading nearest its own whose follower
                        slots are all free in its own map and inside the world bounds: parked at the goal, it
                        can otherwise leave a slot inside an obstacle, and the formation can never close [X]
@@ -135,7 +144,7 @@ class ExpertConfig(Config):
     k_f: float = 0.5
     leader_stopped_speed: float = 0.05
     dock_turn_angle: float = math.radians(45.0)
-    dock_radius: float = 1.5
+    dock_radius: float = 4.0
     reverse_turn_angle: float = math.radians(100.0)
     final_approach_free: bool = True
     pursuit_speed_cap: bool = True
@@ -174,6 +183,8 @@ class ExpertConfig(Config):
     hold_search: float = 4.0
     wind_drift: bool = True
     explore_unknown: bool = True
+    path_margin: float = 0.5
+    margin_detour: float = 2.0
     dock_approach: bool = True
     vane_wind: float = 0.1
     approach_radius: float = 3.0
@@ -202,8 +213,8 @@ class ExpertConfig(Config):
                                             "gap_depth", "gap_margin", "k_gap", "gap_speed", "leader_stopped_speed",
                                             "hold_radius", "k_hold", "separation_margin",
                                             "hold_drift_time", "hold_search", "glide_slope", "wind_margin", "vane_wind",
-                                            "approach_radius",
-                                            "guard_clearance", "guard_speed")},
+                                            "approach_radius", "guard_clearance", "guard_speed", "path_margin",
+                                            "margin_detour")},
         "wind_tau": in_range(0.0, lo_open=True),
         "leader_speed_cap": in_range(0.0, 1.0, lo_open=True),
         "yield_factor": in_range(0.0, 1.0),

@@ -413,16 +413,30 @@ class FusionExpert(OnboardPolicy):
         if blocked is None:
             blocked = self._blocked_raster(view, cfg)
         start, goal = np.clip(view.state[:2], *self._raster_box()), np.clip(goal_xy, *self._raster_box())
-        path = plan_path(blocked, self.raster, start, goal, lim.r_uav + lim.r_safe, cfg.astar)
+        margin = cfg.path_margin if view.is_leader else 0.0       # the leader's route keeps off walls
+        path = self._search(blocked, start, goal, lim, margin, cfg.margin_detour)
         exploring = t - mem.last_progress_time < cfg.stuck_window       # not yet stuck: look at the unseen
         if (path is None and exploring and cfg.explore_unknown and cfg.astar_layer == "passable"
                 and view.prior.kind == "none"):
-            path = plan_path(self._blocked_raster(view, cfg, seen=False), self.raster, start, goal,
-                             lim.r_uav + lim.r_safe, cfg.astar)       # no known way: try the unseen ones
+            path = self._search(self._blocked_raster(view, cfg, seen=False), start, goal, lim, margin,
+                                cfg.margin_detour)                                         # the unseen ways
         mem.path, mem.path_found, mem.plan_goal = path, path is not None, np.array(goal_xy, dtype=np.float64)
         mem.last_plan_time = t
         mem.replans += 1
         return path
+
+    def _search(self, blocked, start, goal, lim, margin: float, detour: float) -> GlobalPath | None:
+        """A* on ``blocked`` inflated by r_uav + r_safe (d1); the path on the raster inflated by ``margin`` more (it
+        keeps off walls, along which DWA crawls) instead when one exists at most ``detour`` m longer and ends in the
+        same cell (a goal near a wall is not moved away by the wider inflation's snapping)."""
+        h_b = lim.r_uav + lim.r_safe
+        path = plan_path(blocked, self.raster, start, goal, h_b, self.config.astar)
+        if path is None or margin <= 0.0:
+            return path
+        wide = plan_path(blocked, self.raster, start, goal, h_b + margin, self.config.astar)
+        if wide is None or wide.length > path.length + detour or not np.array_equal(wide.points[-1], path.points[-1]):
+            return path
+        return wide
 
     def _raster_box(self):
         lo = np.asarray(self.raster.origin) + 1e-6
