@@ -33,13 +33,15 @@ def rollout_rate(make_env, copies: int, steps: int) -> float:
 
 
 def training_rate(make_env, copies: int, timesteps: int) -> float:
+    import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
     from training.config import TrainConfig
     from training.vecenv import SharedPolicyVecEnv
 
-    cfg = TrainConfig()
+    torch.set_num_threads(1)                # as training.train does: torch's spinning threads would take the
+    cfg = TrainConfig(n_envs=copies)        # cores from the env copies; the minibatches of that many copies
     backend = "process" if copies > 1 else "inline"
     venv = VecNormalize(VecMonitor(SharedPolicyVecEnv(make_env, copies, backend=backend)))
     try:
