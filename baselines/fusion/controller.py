@@ -30,8 +30,8 @@ from ..policy import OnboardPolicy
 from ..vertical import BLOCKED, CLIMB, LEVEL, PlannerMemory
 from ..vfh3d import VFHPlanner
 from .config import ExpertConfig
-from .kernels import (closest_approach, columns_without_gap, gap_altitude_kernel, in_sphere, open_level_way,
-                      segment_clear, surface_clearance)
+from .kernels import (closest_approach_of, columns_without_gap, gap_altitude_kernel, in_sphere, live_within,
+                      open_level_way, segment_clear, surface_clearance)
 from .rules import RULES, Command, Cycle, bearing_error, clamp, leader_parked, station_keep, wind_estimate
 
 
@@ -279,9 +279,9 @@ class FusionExpert(OnboardPolicy):
         aim = np.array([target.lookahead[0], target.lookahead[1], z_goal])
         if math.dist(aim, pos) < 1e-6:                         # on the target: 3D VFH+ looks along the heading
             aim = pos + np.array([math.cos(s[PSI]), math.sin(s[PSI]), 0.0])
-        close = view.neighbour_alive & (np.linalg.norm(local.movers_pos - pos, axis=1) < cfg.vfh_neighbour_radius)
+        close = live_within(pos, local.movers_pos, view.neighbour_alive, cfg.vfh_neighbour_radius)
         r = self.vfh(mem.vfh, cfg.vfh, lim, pos, s[PSI], s[V], s[VZ], aim - pos, centres, probs,
-                     view.occupancy.resolution, local.movers_pos[close])
+                     view.occupancy.resolution, close)
         level_way = _level_way(r, cfg, aim - pos) or (
             cfg.level_line and segment_clear(centres, pos, aim, lim.r_uav + lim.r_safe
                                              + view.occupancy.resolution * math.sqrt(3.0) / 2.0))
@@ -318,12 +318,13 @@ class FusionExpert(OnboardPolicy):
         docking = view.is_leader and self._final_approach(view, target.goal, obstacles, radius, cfg,
                                                           cfg.approach_radius)
         fence = geofence_points(pos, local.reach, view.bounds_lo, view.bounds_hi, cfg.geofence_spacing)
-        radii = np.full(len(obstacles), radius + cfg.wind_margin * math.hypot(mem.wind[0], mem.wind[1]))
+        radii = np.zeros(len(obstacles) + len(fence))                      # the fence points have radius 0
+        radii[:len(obstacles)] = radius + cfg.wind_margin * math.hypot(mem.wind[0], mem.wind[1])
         if len(fence):
             obstacles = np.concatenate([obstacles, fence])
-            radii = np.concatenate([radii, np.zeros(len(fence))])
         alive_pos, alive_vel = local.movers_pos[view.neighbour_alive], local.movers_vel[view.neighbour_alive]
-        drift = mem.wind if cfg.wind_drift and mem.wind.any() else None    # the rollouts drift with the wind
+        still = mem.wind[0] == 0.0 and mem.wind[1] == 0.0
+        drift = mem.wind if cfg.wind_drift and not still else None        # the rollouts drift with the wind
 
         def plan(vz):
             return self.dwa(s, lim, dwa_cfg, vertical.heading_goal, obstacles, radii, vz_cmd=vz,
@@ -539,11 +540,9 @@ class FusionExpert(OnboardPolicy):
         lim = view.limits
         s = view.state
         own_vel = np.array([s[V] * math.cos(s[PSI]), s[V] * math.sin(s[PSI]), s[VZ]])
-        lower = (view.neighbour_ids < view.index) & view.neighbour_alive
-        if not lower.any():
-            return v_cap
+        lower = (view.neighbour_ids < view.index) & view.neighbour_alive     # none: the approach is inf
         n_steps = round(cfg.dwa.T_p / lim.dt)
-        if closest_approach(s[:3], own_vel, movers_pos[lower], movers_vel[lower], n_steps, lim.dt) < cfg.dwa.R_uu:
+        if closest_approach_of(s[:3], own_vel, movers_pos, movers_vel, lower, n_steps, lim.dt) < cfg.dwa.R_uu:
             base = lim.v_max if v_cap is None else v_cap
             return cfg.yield_factor * base
         return v_cap

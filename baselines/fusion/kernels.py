@@ -186,12 +186,50 @@ def surface_clearance(pos, obstacles, radius, r_uav):
 @numba.njit(cache=True)
 def closest_approach(pos, vel, movers_pos, movers_vel, n_steps, dt):
     """The least distance to the movers over steps 1..n_steps, everyone at constant velocity."""
+    return closest_approach_of(pos, vel, movers_pos, movers_vel, np.ones(movers_pos.shape[0], np.bool_), n_steps, dt)
+
+
+@numba.njit(cache=True)
+def closest_approach_of(pos, vel, movers_pos, movers_vel, which, n_steps, dt):
+    """``closest_approach`` to the movers selected by the mask ``which``; inf if none is."""
     best = math.inf
     for k in range(1, n_steps + 1):
         t = k * dt
         for m in range(movers_pos.shape[0]):
+            if not which[m]:
+                continue
             dx = (pos[0] - movers_pos[m, 0]) + t * (vel[0] - movers_vel[m, 0])
             dy = (pos[1] - movers_pos[m, 1]) + t * (vel[1] - movers_vel[m, 1])
             dz = (pos[2] - movers_pos[m, 2]) + t * (vel[2] - movers_vel[m, 2])
             best = min(best, math.sqrt(dx * dx + dy * dy + dz * dz))
     return best
+
+
+@numba.njit(cache=True)
+def nearest_live(pos, movers, alive):
+    """Index (into ``movers``) and distance of the nearest live mover (``alive``) to ``pos``; (-1, inf) if none.
+    The distance is ``np.linalg.norm``'s (x^2 + y^2 + z^2, summed in that order); the first of equals wins."""
+    best, m = math.inf, -1
+    for k in range(movers.shape[0]):
+        if alive[k]:
+            dx, dy, dz = movers[k, 0] - pos[0], movers[k, 1] - pos[1], movers[k, 2] - pos[2]
+            d = math.sqrt(dx * dx + dy * dy + dz * dz)
+            if d < best:
+                best, m = d, k
+    return m, best
+
+
+@numba.njit(cache=True)
+def live_within(pos, movers, alive, radius):
+    """The live ``movers`` (M, 3) nearer than ``radius`` to ``pos`` (``np.linalg.norm``'s distance), in their order."""
+    keep = np.empty(movers.shape[0], dtype=np.int64)
+    n = 0
+    for k in range(movers.shape[0]):
+        dx, dy, dz = movers[k, 0] - pos[0], movers[k, 1] - pos[1], movers[k, 2] - pos[2]
+        if alive[k] and math.sqrt(dx * dx + dy * dy + dz * dz) < radius:
+            keep[n] = k
+            n += 1
+    out = np.empty((n, 3))
+    for m in range(n):
+        out[m] = movers[keep[m]]
+    return out

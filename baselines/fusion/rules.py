@@ -17,7 +17,7 @@ import numpy as np
 from uavform_env.dynamics import PSI, V, W, integrate, wrap
 
 from ..vfh3d import vertical_escape
-from .kernels import closest_approach
+from .kernels import closest_approach, nearest_live
 
 
 @dataclass
@@ -141,18 +141,15 @@ def vertical_separation(cmd: Command, c: Cycle) -> None:
     the horizontal dynamic window (0.2 m/s^2) is too slow against gusts that push two UAVs together; the
     vertical one (0.5 m/s^2, 0.5 m/s) is the fastest way apart."""
     view, cfg = c.view, c.cfg
-    alive = view.neighbour_alive
-    if c.cfg.separation_margin <= 0.0 or not alive.any():
+    if c.cfg.separation_margin <= 0.0:
         return
     pos = view.state[:3]
-    movers = c.movers_pos[alive]
-    dist = np.linalg.norm(movers - pos, axis=1)
-    m = int(np.argmin(dist))
-    if dist[m] >= cfg.dwa.R_uu + cfg.separation_margin:
+    m, dist = nearest_live(pos, c.movers_pos, view.neighbour_alive)
+    if m < 0 or dist >= cfg.dwa.R_uu + cfg.separation_margin:
         return
     lim = view.limits
-    dz = pos[2] - movers[m, 2]
-    up = dz > 0.0 if abs(dz) > 1e-6 else view.index > int(view.neighbour_ids[alive][m])
+    dz = pos[2] - c.movers_pos[m, 2]
+    up = dz > 0.0 if abs(dz) > 1e-6 else view.index > int(view.neighbour_ids[m])
     margin = lim.r_uav + lim.r_safe
     for sign in ((1.0, -1.0) if up else (-1.0, 1.0)):
         z_next = pos[2] + sign * margin                    # checked every cycle: the next r_uav + r_safe of the way
@@ -235,8 +232,8 @@ def wind_estimate(view, mem, cfg) -> None:
     prev = mem.prev_pose
     if prev is not None:
         x, y, _, _ = integrate(prev[0], prev[1], 0.0, prev[2], s[V], s[W], 0.0, dt)
-        drift = np.array([s[0] - x, s[1] - y]) / dt
-        mem.wind = mem.wind + min(1.0, dt / cfg.wind_tau) * (drift - mem.wind)
+        gain, wind_x, wind_y = min(1.0, dt / cfg.wind_tau), float(mem.wind[0]), float(mem.wind[1])
+        mem.wind = np.array([wind_x + gain * ((s[0] - x) / dt - wind_x), wind_y + gain * ((s[1] - y) / dt - wind_y)])
     mem.prev_pose = (float(s[0]), float(s[1]), float(s[PSI]))
 
 
