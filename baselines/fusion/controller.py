@@ -279,10 +279,11 @@ class FusionExpert(OnboardPolicy):
         aim = np.array([target.lookahead[0], target.lookahead[1], z_goal])
         if math.dist(aim, pos) < 1e-6:                         # on the target: 3D VFH+ looks along the heading
             aim = pos + np.array([math.cos(s[PSI]), math.sin(s[PSI]), 0.0])
+        to_aim = aim - pos
         close = live_within(pos, local.movers_pos, view.neighbour_alive, cfg.vfh_neighbour_radius)
-        r = self.vfh(mem.vfh, cfg.vfh, lim, pos, s[PSI], s[V], s[VZ], aim - pos, centres, probs,
+        r = self.vfh(mem.vfh, cfg.vfh, lim, pos, s[PSI], s[V], s[VZ], to_aim, centres, probs,
                      view.occupancy.resolution, close)
-        level_way = _level_way(r, cfg, aim - pos) or (
+        level_way = _level_way(r, cfg, to_aim) or (
             cfg.level_line and segment_clear(centres, pos, aim, lim.r_uav + lim.r_safe
                                              + view.occupancy.resolution * math.sqrt(3.0) / 2.0))
         mode = self._debounced_mode(mem, r, cfg, level_way, gap_z is not None)
@@ -378,7 +379,7 @@ class FusionExpert(OnboardPolicy):
         errors = _follower_errors(view)
         scale = 1.0
         if errors.size:
-            mean_err = float(errors.mean())
+            mean_err = float(np.add.reduce(errors) / errors.size)           # np.mean's sum and division
             scale = clamp(1.0 - (mean_err - cfg.e0) / (cfg.e1 - cfg.e0), cfg.min_leader_scale, 1.0)
         return goal, lookahead, cfg.leader_speed_cap * lim.v_max * scale, None
 

@@ -76,12 +76,13 @@ def dock_turn(cmd: Command, c: Cycle) -> None:
     more than ``dock_turn_angle`` off its nose turns in place toward it."""
     view, cfg = c.view, c.cfg
     s = view.state
+    if not view.is_leader and not (leader_parked(view, cfg) and s[V] < cfg.leader_stopped_speed):
+        return
     to_goal = (view.goal[:2] if view.is_leader else c.goal) - s[:2]
     if view.is_leader:
         docking = math.hypot(to_goal[0], to_goal[1]) < cfg.dock_radius
     else:
-        docking = (leader_parked(view, cfg) and s[V] < cfg.leader_stopped_speed
-                   and math.hypot(to_goal[0], to_goal[1]) >= view.config.formation.e_f / 2)
+        docking = math.hypot(to_goal[0], to_goal[1]) >= view.config.formation.e_f / 2
     if docking and abs(bearing_error(s, to_goal)) > cfg.dock_turn_angle:
         cmd.v, cmd.w, cmd.turning = 0.0, turn_toward(s, to_goal, view.limits.w_max), True
 
@@ -102,9 +103,11 @@ def dock_approach(cmd: Command, c: Cycle) -> None:
 def reverse_turn(cmd: Command, c: Cycle) -> None:
     """[X] ``reverse_turn_angle``: a UAV steering by a path's lookahead point (the leader; a rejoining follower)
     turns in place when that point lies more than ``reverse_turn_angle`` off its nose (unless it docks)."""
+    if cmd.turning or not c.mem.on_path:
+        return
     s = c.view.state
     to_lookahead = c.lookahead - s[:2]
-    if not cmd.turning and c.mem.on_path and abs(bearing_error(s, to_lookahead)) > c.cfg.reverse_turn_angle:
+    if abs(bearing_error(s, to_lookahead)) > c.cfg.reverse_turn_angle:
         cmd.v, cmd.w, cmd.turning = 0.0, turn_toward(s, to_lookahead, c.view.limits.w_max), True
 
 
