@@ -91,8 +91,9 @@ def in_sphere(points, values, centre, radius):
             n += 1
     inside, inside_values = np.empty((n, 3)), np.empty(n)
     for m in range(n):
-        inside[m] = points[keep[m]]
-        inside_values[m] = values[keep[m]]
+        k = keep[m]
+        inside[m, 0], inside[m, 1], inside[m, 2] = points[k, 0], points[k, 1], points[k, 2]
+        inside_values[m] = values[k]
     return inside, inside_values
 
 
@@ -231,5 +232,6 @@ def live_within(pos, movers, alive, radius):
             n += 1
     out = np.empty((n, 3))
     for m in range(n):
-        out[m] = movers[keep[m]]
+        k = keep[m]
+        out[m, 0], out[m, 1], out[m, 2] = movers[k, 0], movers[k, 1], movers[k, 2]
     return out
