@@ -31,7 +31,7 @@ from ..vertical import BLOCKED, CLIMB, LEVEL, PlannerMemory
 from ..vfh3d import VFHPlanner
 from .config import ExpertConfig
 from .kernels import (closest_approach_of, columns_without_gap, gap_altitude_kernel, in_sphere, live_within,
-                      open_level_way, segment_clear, surface_clearance)
+                      mark_cells, open_level_way, predicted_movers, segment_clear, surface_clearance)
 from .rules import RULES, Command, Cycle, bearing_error, clamp, leader_parked, station_keep, wind_estimate
 
 
@@ -460,7 +460,7 @@ class FusionExpert(OnboardPolicy):
         else:
             columns = columns_without_gap(occ_map, centres, lim.z_min, lim.z_max, 2 * h_b + res, seen)
         blocked = np.zeros(self.raster.shape, bool)
-        blocked[[0, -1], :] = blocked[:, [0, -1]] = True       # the world's x/y bounds are walls (geofence)
+        blocked[0, :] = blocked[-1, :] = blocked[:, 0] = blocked[:, -1] = True    # the x/y bounds are walls (geofence)
         _mark(blocked, self.raster, columns)
         prior = view.prior
         if prior.kind != "none":
@@ -525,14 +525,7 @@ class FusionExpert(OnboardPolicy):
     # ------------------------------------------------------------------ neighbours (g6)
     def _neighbours(self, view, cfg: ExpertConfig):
         ns = view.neighbour_states
-        vel = np.empty((len(ns), 3))
-        vel[:, 0] = ns[:, V] * np.cos(ns[:, PSI])
-        vel[:, 1] = ns[:, V] * np.sin(ns[:, PSI])
-        vel[:, 2] = ns[:, VZ]
-        pos = ns[:, :3] + vel * view.limits.dt                             # broadcasts are one cycle old
-        if not cfg.neighbour_prediction:
-            vel = np.zeros_like(vel)
-        return pos, vel
+        return predicted_movers(ns, np.cos(ns[:, PSI]), np.sin(ns[:, PSI]), view.limits.dt, cfg.neighbour_prediction)
 
     def _yield(self, view, movers_pos, movers_vel, cfg: ExpertConfig, v_cap):
         """Deadlock rule of (g6): a UAV predicting a conflict with a lower-index UAV caps its speed."""
@@ -599,11 +592,8 @@ def _raster_for(view, res: float) -> Raster:
 
 def _mark(blocked: np.ndarray, raster: Raster, xy: np.ndarray) -> None:
     """Block the raster cells containing the points ``xy`` (K, 2); points outside the raster are ignored."""
-    if len(xy) == 0:
-        return
-    cells = np.floor((xy - np.asarray(raster.origin)) / raster.res).astype(np.int64)
-    ok = np.all((cells >= 0) & (cells < np.asarray(raster.shape)), axis=1)
-    blocked[cells[ok, 0], cells[ok, 1]] = True
+    mark_cells(blocked, float(raster.origin[0]), float(raster.origin[1]), float(raster.res),
+               np.ascontiguousarray(xy, dtype=np.float64))
 
 
 def _level_way(r, cfg: ExpertConfig, target_dir: np.ndarray) -> bool:

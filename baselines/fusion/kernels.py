@@ -7,7 +7,7 @@ import math
 import numba
 import numpy as np
 
-from uavform_env.dynamics import wrap
+from uavform_env.dynamics import V, VZ, wrap
 from uavform_env.occupancy import voxel_logodds
 
 
@@ -235,3 +235,30 @@ def live_within(pos, movers, alive, radius):
         k = keep[m]
         out[m, 0], out[m, 1], out[m, 2] = movers[k, 0], movers[k, 1], movers[k, 2]
     return out
+
+
+@numba.njit(cache=True)
+def mark_cells(blocked, origin_x, origin_y, res, xy):
+    """Set the cells of the 2D raster ``blocked`` (origin, cell size ``res``) that contain the points ``xy``
+    (K, 2) to True; points outside the raster are ignored."""
+    nx, ny = blocked.shape
+    for k in range(xy.shape[0]):
+        i = int(math.floor((xy[k, 0] - origin_x) / res))
+        j = int(math.floor((xy[k, 1] - origin_y) / res))
+        if 0 <= i < nx and 0 <= j < ny:
+            blocked[i, j] = True
+
+
+@numba.njit(cache=True)
+def predicted_movers(states, cos_psi, sin_psi, dt, predict):
+    """The neighbours as movers (g6) from their broadcast rows ``states`` (K, 7) and the cosines and sines of their
+    headings: positions one cycle ahead (the broadcasts are one cycle old) and velocities (zero unless
+    ``predict``)."""
+    n = states.shape[0]
+    pos, vel = np.empty((n, 3)), np.zeros((n, 3))
+    for k in range(n):
+        vx, vy, vz = states[k, V] * cos_psi[k], states[k, V] * sin_psi[k], states[k, VZ]
+        pos[k, 0], pos[k, 1], pos[k, 2] = states[k, 0] + vx * dt, states[k, 1] + vy * dt, states[k, 2] + vz * dt
+        if predict:
+            vel[k, 0], vel[k, 1], vel[k, 2] = vx, vy, vz
+    return pos, vel
