@@ -249,7 +249,7 @@ class FusionExpert(OnboardPolicy):
         else:
             slot_hidden = cfg.rejoin_hidden and not segment_clear(local.obstacles, s[:3], view.slot,
                                                                   lim.r_uav + local.radius)
-            goal, lookahead, v_cap, v_ref = self._follower_target(view, mem, cfg, t, slot_hidden)
+            goal, lookahead, v_cap, v_ref = self._follower_target(view, mem, cfg, t, slot_hidden, local)
         if cfg.pursuit_speed_cap:
             v_cap = _pursuit_cap(s, lookahead, lim.w_max, lim.v_max if v_cap is None else v_cap)
         v_cap = self._yield(view, local.movers_pos, local.movers_vel, cfg, v_cap)
@@ -469,13 +469,13 @@ class FusionExpert(OnboardPolicy):
             _mark(blocked, self.raster, prior.origin + (cells + 0.5) * prior.resolution)
         return blocked
 
-    def _follower_target(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float, slot_hidden: bool):
+    def _follower_target(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float, slot_hidden: bool, local: _Local):
         lim = view.limits
         lead = view.leader_state
         offset = view.slot_offset
         column = False
         if cfg.shape_switching:
-            if view.occupancy.occupied_within(view.slot, lim.r_uav + lim.r_safe + view.occupancy.resolution):
+            if _occupied_within(view, local, view.slot, lim.r_uav + lim.r_safe + view.occupancy.resolution):
                 mem.column_until = t + cfg.column_hold
             column = t < mem.column_until
         key = (lead.tobytes(), cfg.dwa.T_p)              # every follower predicts the same broadcast: once a step
@@ -583,6 +583,15 @@ def _altitude_target(view, mem: _UAVMemory, cfg: ExpertConfig) -> float:
         return z_goal
     d = math.hypot(view.goal[0] - view.state[0], view.goal[1] - view.state[1])
     return z_goal + math.copysign(min(abs(rise), cfg.glide_slope * max(0.0, d - cfg.dock_radius)), rise)
+
+
+def _occupied_within(view, local: _Local, point: np.ndarray, radius: float) -> bool:
+    """``view.occupancy.occupied_within(point, radius)``, answered from the cycle's local voxels when they hold every
+    voxel that query could find (leaf level, the ball around ``point`` inside the local sphere with a voxel to
+    spare): any leaf centre at squared distance <= radius^2, the map kernel's test in its arithmetic."""
+    if local.level == 0 and math.dist(point, view.state[:3]) + radius + view.occupancy.resolution <= local.reach:
+        return not segment_clear(local.obstacles, point, point, radius)    # a point segment: the ball's test
+    return view.occupancy.occupied_within(point, radius)
 
 
 def _raster_for(view, res: float) -> Raster:
