@@ -1,0 +1,92 @@
+"""The fusion expert's small numba kernels give bit for bit the numpy expressions they replace (the end-state
+snapshots depend on it), and the local-voxel answer to "is this slot blocked" equals the map's query."""
+
+import math
+
+import numpy as np
+
+from baselines.fusion import FusionExpert
+from baselines.fusion.controller import _occupied_within
+from baselines.fusion.kernels import (closest_approach, closest_approach_of, in_sphere, live_within, mark_cells,
+                                      nearest_live, predicted_movers)
+from uavform_env import parallel_env
+from uavform_env.dynamics import PSI, V, VZ
+
+RNG = np.random.default_rng(7)
+
+
+def test_nearest_and_near_live_movers_match_numpy_norms():
+    for _ in range(200):
+        k = int(RNG.integers(0, 7))
+        movers, pos = RNG.normal(size=(k, 3)) * 4.0, RNG.normal(size=3)
+        alive = RNG.random(k) < 0.7
+        dist = np.linalg.norm(movers - pos, axis=1)
+        m, d = nearest_live(pos, movers, alive)
+        if alive.any():
+            live = np.flatnonzero(alive)
+            assert m == live[np.argmin(dist[alive])] and d == dist[m]
+        else:
+            assert m == -1 and d == math.inf
+        assert np.array_equal(live_within(pos, movers, alive, 3.0), movers[alive & (dist < 3.0)])
+
+
+def test_closest_approach_of_a_subset_is_closest_approach_to_that_subset():
+    for _ in range(100):
+        k = int(RNG.integers(0, 6))
+        args = RNG.normal(size=3), RNG.normal(size=3), RNG.normal(size=(k, 3)) * 3.0, RNG.normal(size=(k, 3))
+        which = RNG.random(k) < 0.5
+        assert closest_approach_of(*args, which, 30, 0.1) == closest_approach(args[0], args[1], args[2][which],
+                                                                               args[3][which], 30, 0.1)
+
+
+def test_in_sphere_keeps_the_points_and_values_inside_in_order():
+    pts, vals, centre = RNG.normal(size=(500, 3)) * 3.0, RNG.random(500), RNG.normal(size=3)
+    inside, inside_vals = in_sphere(pts, vals, centre, 2.5)
+    keep = ((pts - centre) ** 2).sum(axis=1) <= 2.5 ** 2
+    assert np.array_equal(inside, pts[keep]) and np.array_equal(inside_vals, vals[keep])
+
+
+def test_mark_cells_blocks_the_cells_of_the_points_inside_the_raster():
+    origin, res, shape = np.array([-3.1, 2.05]), 0.4, (20, 15)
+    xy = RNG.uniform(-6.0, 12.0, size=(300, 2))
+    blocked = np.zeros(shape, bool)
+    mark_cells(blocked, origin[0], origin[1], res, xy)
+    cells = np.floor((xy - origin) / res).astype(np.int64)
+    ok = np.all((cells >= 0) & (cells < np.asarray(shape)), axis=1)
+    expected = np.zeros(shape, bool)
+    expected[cells[ok, 0], cells[ok, 1]] = True
+    assert np.array_equal(blocked, expected)
+
+
+def test_predicted_movers_are_the_broadcasts_moved_one_cycle():
+    ns = RNG.normal(size=(4, 7))
+    for predict in (True, False):
+        pos, vel = predicted_movers(ns, np.cos(ns[:, PSI]), np.sin(ns[:, PSI]), 0.1, predict)
+        expected = np.column_stack([ns[:, V] * np.cos(ns[:, PSI]), ns[:, V] * np.sin(ns[:, PSI]), ns[:, VZ]])
+        assert np.array_equal(pos, ns[:, :3] + expected * 0.1)
+        assert np.array_equal(vel, expected if predict else np.zeros_like(expected))
+
+
+def test_slot_blocked_from_the_local_voxels_equals_the_map_query():
+    penv = parallel_env(scenario="forest", max_cycles=60)
+    obs, _ = penv.reset(seed=0)
+    policy = FusionExpert()
+    policy.reset(penv, seed=0)
+    fast = occupied = 0
+    for _ in range(40):
+        for agent in penv.agents:
+            view = penv.unwrapped.onboard(agent)
+            local = policy._local(view, policy.config)
+            for _ in range(25):
+                radius = RNG.uniform(0.1, 1.5)
+                if len(local.obstacles) and RNG.random() < 0.5:     # on the ball's rim around a voxel
+                    d = RNG.normal(size=3)
+                    point = local.obstacles[RNG.integers(len(local.obstacles))] + d / np.linalg.norm(d) * radius
+                else:
+                    point = view.state[:3] + RNG.normal(size=3) * 2.0
+                want = view.occupancy.occupied_within(point, radius)
+                assert _occupied_within(view, local, point, radius) == want
+                fast += math.dist(point, view.state[:3]) + radius + view.occupancy.resolution <= local.reach
+                occupied += want
+        obs, *_ = penv.step(policy.act(obs, penv))
+    assert fast > 1000 and occupied > 100           # the fast path and occupied answers were both exercised
