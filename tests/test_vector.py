@@ -7,6 +7,7 @@ import pytest
 from pettingzoo.utils import BaseParallelWrapper
 
 from uavform_env import parallel_env
+from uavform_env.env import END_REASONS
 from uavform_env.vector import VectorEnv, copy_seed
 
 from .conftest import small_env_kwargs
@@ -215,6 +216,13 @@ def test_torchrl_view_checks_and_rolls_out_reproducibly():
     done = td["next", "done"].squeeze(-1)
     assert done[:, MAX_CYCLES - 1].all() and not done[:, : MAX_CYCLES - 1].any()   # the time limit, then reset
     assert td["next", "truncated"][:, MAX_CYCLES - 1].all()
+    # The env's infos ride along: step counters from the reset on, and the end reason of the time limit.
+    steps = td["next", GROUP, "info", "step"]
+    assert steps.shape == (2, MAX_CYCLES + 4, N, 1) and steps.dtype == torch.int64
+    assert (steps[:, :MAX_CYCLES, :, 0] == torch.arange(1, MAX_CYCLES + 1)[None, :, None]).all()
+    assert (td[GROUP, "info", "step"][:, 0] == 0).all() and (td[GROUP, "info", "step"][:, MAX_CYCLES] == 0).all()
+    assert (td["next", GROUP, "info", "end_reason"][:, MAX_CYCLES - 1] == END_REASONS.index("timeout")).all()
+    assert td["next", GROUP, "info", "clearance"].dtype == torch.float32
     # After TorchRL's partial reset the copies play their second seeds.
     single = make()
     ref, _ = single.reset(seed=copy_seed(3, 1, 2, 1))

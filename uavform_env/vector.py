@@ -85,6 +85,7 @@ class VectorEnv:
         self.base_seed: int | None = None
         self.episodes = np.zeros(n_copies, np.int64)       # episodes started since seed(), per copy
         self._obs = np.zeros((n_copies, self.n_agents, *self.obs_shape), self.observation_space.dtype)
+        self.reset_infos: list[list[dict]] = [[{} for _ in self.possible_agents] for _ in range(n_copies)]
 
     def describe(self) -> tuple:
         """(possible_agents, observation_space, action_space): what a caller in another process needs."""
@@ -110,7 +111,8 @@ class VectorEnv:
     def reset(self, seed: int | None = None, indices: Sequence[int] | None = None) -> np.ndarray:
         """Start the next episode of the copies ``indices`` (default all); returns every copy's observation.
 
-        ``seed`` restarts the seed streams first (see ``seed``).
+        ``seed`` restarts the seed streams first (see ``seed``). Each copy's reset infos (per agent) are in
+        ``reset_infos[copy]``, as SB3's VecEnv keeps them.
         """
         if seed is not None:
             self.seed(seed)
@@ -120,11 +122,12 @@ class VectorEnv:
 
     def _reset_copy(self, k: int) -> None:
         env = self.envs[k]
-        obs, _ = env.reset(seed=self._next_seed(k))
+        obs, infos = env.reset(seed=self._next_seed(k))
         if list(env.agents) != self.possible_agents:
             raise ValueError(f"env copy {self.first + k}: reset() left agents {env.agents}; the vector env needs "
                              f"all of {self.possible_agents} live at the start of every episode")
         self._obs[k] = [obs[a] for a in self.possible_agents]
+        self.reset_infos[k] = [dict(infos[a]) for a in self.possible_agents]
 
     # ------------------------------------------------------------------ stepping
     def step(self, actions: np.ndarray):
