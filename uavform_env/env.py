@@ -37,6 +37,7 @@ _DETOUR = 2.0      # the memory estimate's flight length over the straight start
 
 INFO_KEYS = ("clearance", "separation", "formation_error", "target_distance", "goal_distance", "speed",
              "altitude", "crashed", "crash_cause", "success", "end_reason", "step", "TimeLimit.truncated")
+INFO_INTEGERS = ("crashed", "crash_cause", "success", "end_reason", "step")   # the counts and codes among them
 # Integer codes of the infos "crash_cause" (per UAV) and "end_reason" (the episode's, 0 while it runs).
 # Success needs every UAV flying: once one crashed, the episode's end reason is that (first) crash.
 CRASH_CAUSES = ("none", "obstacle", "uav", "geofence")

@@ -24,12 +24,12 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
-from .env import INFO_KEYS
+from .env import INFO_INTEGERS, INFO_KEYS
 from .vector import VectorEnv
 
 GROUP = "agents"
 # The infos as TorchRL entries: counts and codes as integers, measurements as floats.
-INFO_DTYPES = {key: torch.int64 if key in ("crashed", "crash_cause", "success", "end_reason", "step") else torch.float32
+INFO_DTYPES = {key: torch.int64 if key in INFO_INTEGERS else torch.float32
                for key in INFO_KEYS if key != "TimeLimit.truncated"}
 
 

@@ -190,14 +190,14 @@ class FusionExpert(OnboardPolicy):
         near = project_to_altitude(voxels, pos[2], band)
         points = np.concatenate([near, geofence_points(pos, reach, view.bounds_lo, view.bounds_hi,
                                                        cfg.geofence_spacing)])
+        if len(points) == 0:
+            return pos[:2].copy()
         step = cfg.geofence_spacing
         axis = np.arange(-cfg.hold_search, cfg.hold_search + step / 2, step)
         gx, gy = np.meshgrid(axis, axis, indexing="ij")
         inside = gx ** 2 + gy ** 2 <= cfg.hold_search ** 2
         cand = np.column_stack([pos[0] + gx[inside], pos[1] + gy[inside], np.full(int(inside.sum()), pos[2])])
         cand = np.vstack([pos, cand])                                      # its own position first
-        if len(points) == 0:
-            return pos[:2].copy()
         clear = np.sqrt(((cand[:, None, :2] - points[None, :, :2]) ** 2).sum(axis=2)).min(axis=1) - lim.r_uav
         dist = np.hypot(cand[:, 0] - pos[0], cand[:, 1] - pos[1])
         order = np.lexsort((dist, -np.minimum(clear, margin)))           # enough clearance first, then nearest
