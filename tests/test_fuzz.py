@@ -13,7 +13,8 @@ from uavform_env.config import DisturbanceConfig, EpisodeConfig, MapConfig, Obse
 from .test_env_behaviour import open_field
 
 FIELDS = {
-    UAVLimits: ["dt", "v_max", "w_max", "a_max", "dw_max", "vz_max", "r_uav", "z_min", "z_max"],
+    UAVLimits: ["dt", "v_max", "w_max", "a_max", "dw_max", "vz_max", "r_uav", "z_min", "z_max", "wind_authority",
+                "wind_rejection_tau"],
     SensorConfig: ["n_azimuth", "n_elevation", "r_max"],
     MapConfig: ["resolution", "p_hit", "p_miss", "p_min", "p_max"],
     ObservationConfig: ["k_neighbours", "histogram_cell_deg", "histogram_radius"],

@@ -1,15 +1,18 @@
 """Known answers of the gust field (uavform_env.wind): its spread, its correlation in space and time, and what it
-does to a formation (nearby UAVs drift together)."""
+does to a formation (nearby UAVs drift together), and how the airframe rejects it (``dynamics.wind_drift``)."""
 
 import math
 
 import numpy as np
+import pytest
 
 from uavform_env import parallel_env
-from uavform_env.config import DisturbanceConfig, EnvConfig
+from uavform_env.config import DisturbanceConfig, EnvConfig, UAVLimits
+from uavform_env.dynamics import wind_drift
 from uavform_env.wind import GUST_MODES, GustField
 
 from .conftest import small_env_kwargs
+from .test_env_behaviour import open_field
 
 L, STD, TAU = 20.0, 0.3, 2.0
 
@@ -56,12 +59,13 @@ def test_same_seed_same_field():
 
 def test_a_formation_drifts_together():
     """Hovering UAVs 2 m apart: under a field with L = 20 m they drift apart far less than they drift; with a
-    correlation length far below their spacing they drift apart about as much as they drift."""
+    correlation length far below their spacing they drift apart about as much as they drift. The field's own
+    correlation: the airframe does not oppose the wind here (``wind_authority=0``)."""
     def spread(length):
         moved, apart = [], []
         for seed in range(6):
             penv = parallel_env(**small_env_kwargs(), config=EnvConfig(
-                disturbance=DisturbanceConfig(wind_std=0.5, wind_length=length)))
+                uav=UAVLimits(wind_authority=0.0), disturbance=DisturbanceConfig(wind_std=0.5, wind_length=length)))
             penv.reset(seed=seed)
             start = penv.unwrapped.states[:, :2].copy()
             for _ in range(30):
@@ -74,3 +78,75 @@ def test_a_formation_drifts_together():
     assert apart < 0.2 * moved
     moved, apart = spread(0.05)
     assert apart > 0.8 * moved
+
+
+# ---------------------------------------------------------------- the airframe against the wind (dynamics.wind_drift)
+def _hover(disturbance, steps, uav=UAVLimits(), n_uavs=1, seed=0):
+    """Positions (steps + 1, N, 3) and drifts (steps, N, 3) of UAVs commanding zero speed."""
+    penv = parallel_env(scenario=open_field(n_uavs), max_cycles=steps + 1,
+                        config=EnvConfig(uav=uav), disturbance=disturbance)
+    penv.reset(seed=seed)
+    env = penv.unwrapped
+    pos, drift = [env.states[:, :3].copy()], []
+    for _ in range(steps):
+        penv.step({a: np.array([-1.0, 0.0, 0.0], np.float32) for a in penv.agents})
+        pos.append(env.states[:, :3].copy())
+        drift.append(env.drift.copy())
+    return np.array(pos), np.array(drift), env
+
+
+def test_steady_wind_below_the_authority_is_rejected_with_the_estimate_lag():
+    """lean_k = w (1 - a^k), a = exp(-dt/tau): the drift of step k is w a^k and the offset converges to
+    w dt a / (1 - a), the right Riemann sum of the integral of w exp(-t/tau) = w tau."""
+    w, lim = np.array([0.6, -0.8, 0.0]), UAVLimits()
+    dt, tau = lim.dt, lim.wind_rejection_tau
+    assert np.hypot(*w[:2]) < lim.wind_authority
+    pos, drift, _ = _hover(DisturbanceConfig(wind_mean=(0.6, -0.8)), 80, lim)
+    a = math.exp(-dt / tau)
+    k = np.arange(1, 81)
+    np.testing.assert_allclose(drift[:, 0], w[None, :] * a ** k[:, None], rtol=1e-9, atol=1e-15)
+    offset = pos[-1, 0] - pos[0, 0]
+    np.testing.assert_allclose(offset, w * dt * a * (1 - a ** 80) / (1 - a), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(offset, w * 0.45167, rtol=1e-4)               # 0.45167 s for dt 0.1, tau 0.5
+    assert np.all(np.abs(offset - w * tau) <= np.abs(w) * dt + 1e-12)        # within one step of w tau
+    assert np.linalg.norm(pos[-1, 0] - pos[-20, 0]) < 1e-5                   # at rest: the wind is rejected
+
+
+def test_wind_above_the_authority_carries_the_excess_along_the_wind():
+    lim = UAVLimits(wind_authority=1.5)
+    pos, drift, env = _hover(DisturbanceConfig(wind_mean=(1.6, 1.2)), 100, lim)   # |w| = 2 m/s
+    np.testing.assert_allclose(drift[-1, 0], [0.4, 0.3, 0.0], atol=1e-9)          # (|w| - 1.5) along w
+    np.testing.assert_allclose(np.hypot(*env.lean[0, :2]), 1.5, rtol=1e-12)
+    np.testing.assert_allclose(pos[-1, 0] - pos[-2, 0], [0.04, 0.03, 0.0], atol=1e-9)
+
+
+def test_the_vertical_lean_is_clipped_and_inactive_uavs_keep_theirs():
+    lim = UAVLimits(wind_authority=3.0, wind_rejection_tau=0.0)                   # tau 0: the estimate is exact
+    air = np.array([[0.0, 0.0, 5.0], [4.0, 0.0, -5.0], [9.0, 9.0, 9.0]])
+    lean = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.5, 0.5, 0.5]])
+    drift = wind_drift(air, lean, np.array([True, True, False]), lim)
+    np.testing.assert_array_equal(lean, [[0.0, 0.0, 3.0], [3.0, 0.0, -3.0], [0.5, 0.5, 0.5]])
+    np.testing.assert_array_equal(drift, air - lean)
+
+
+def test_no_authority_is_the_unopposed_wind():
+    pos, drift, env = _hover("gusty", 50, UAVLimits(wind_authority=0.0), n_uavs=2)
+    assert np.all(env.lean == 0.0)
+    np.testing.assert_array_equal(drift[-1], env.air)
+    np.testing.assert_allclose(pos[1:] - pos[:-1], drift * 0.1, atol=1e-12)
+    assert np.abs(drift).max() > 0.5                                              # gusty really blew
+
+
+def test_wind_rejection_is_deterministic():
+    runs = [_hover("gusty", 40, n_uavs=2, seed=3) for _ in range(2)]
+    np.testing.assert_array_equal(runs[0][0], runs[1][0])
+    np.testing.assert_array_equal(runs[0][2].lean, runs[1][2].lean)
+    assert np.abs(runs[0][1]).max() > 0.0
+
+
+def test_bad_wind_rejection_fields_raise_one_line_errors():
+    for field, bad in (("wind_authority", -1.0), ("wind_authority", math.nan), ("wind_rejection_tau", -0.1),
+                       ("wind_rejection_tau", "fast")):
+        with pytest.raises(ValueError, match=f"UAVLimits.{field}=") as err:
+            UAVLimits(**{field: bad})
+        assert "\n" not in str(err.value)

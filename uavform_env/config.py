@@ -143,7 +143,15 @@ class Config:
 
 @dataclass(frozen=True)
 class UAVLimits(Config):
-    """Kinematic limits of one UAV (spec (a)); the planners' model uses exactly these."""
+    """Kinematic limits of one UAV (spec (a)); the planners' model uses exactly these.
+
+    Against wind the commands are ground-velocity set-points of a multirotor autopilot that leans into the wind
+    it has estimated (``dynamics.wind_drift``; README, "Disturbances"; docs/deviations.md): its estimate follows
+    the true wind with time constant ``wind_rejection_tau`` (s, default 0.5) and is capped at
+    ``wind_authority`` (m/s, default 3.0: the largest wind the airframe can lean against, per horizontal
+    magnitude; the vertical component is capped at the same value). The UAV is carried by the wind minus the
+    estimate. ``wind_authority = 0`` gives the unopposed model (the whole wind carries the UAV) [X].
+    """
 
     dt: float = 0.1
     v_min: float = 0.0
@@ -158,6 +166,8 @@ class UAVLimits(Config):
     r_safe: float = 0.2
     z_min: float = 0.5
     z_max: float = 10.0
+    wind_authority: float = 3.0
+    wind_rejection_tau: float = 0.5
 
     def __post_init__(self):
         o = "UAVLimits"
@@ -176,6 +186,8 @@ class UAVLimits(Config):
         check_range(o, "z_min", self.z_min, 0.0, None)
         check_range(o, "z_max", self.z_max, 0.0, None, lo_open=True)
         check_order(o, "z_min", self.z_min, "z_max", self.z_max)
+        check_range(o, "wind_authority", self.wind_authority, 0.0, 50.0)
+        check_range(o, "wind_rejection_tau", self.wind_rejection_tau, 0.0, 100.0)
 
     def climb_angle_limit(self, v: float) -> float:
         """e_max(v) = min(gamma_max, atan2(vz_max, max(v, 1e-3))) (spec (a))."""
@@ -332,7 +344,8 @@ class DisturbanceConfig(Config):
 
     Wind: a gust field (``wind.GustField``) of ``wind_std`` m/s per horizontal axis (vertical scaled by
     ``wind_vertical``), correlation time ``wind_tau`` s and correlation length ``wind_length`` m, plus the
-    steady ``wind_mean`` (x, y) m/s, pushing every flying UAV's position (``FormationEnv._apply_wind``). Sensor: every range that hit something gets Gaussian
+    steady ``wind_mean`` (x, y) m/s, pushing every flying UAV's position, less what its autopilot compensates
+    (``UAVLimits.wind_authority``; ``FormationEnv._apply_wind``). Sensor: every range that hit something gets Gaussian
     noise of ``range_noise_std`` m, and each ray is lost with probability ``ray_dropout`` (it then reads
     as no return: free space up to r_max, as a lidar's lost echo does) (``sensing.perturb_scan``).
     Named presets: ``DISTURBANCE_PRESETS``.

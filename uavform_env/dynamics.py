@@ -96,3 +96,26 @@ def step(states: np.ndarray, commands: np.ndarray, active: np.ndarray, limits: U
     _step_kernel(states, np.ascontiguousarray(commands, dtype=np.float64), active, limits.dt,
                  limits.v_min, limits.v_max, limits.w_max, limits.a_max, limits.dw_max,
                  limits.vz_max, limits.az_max, limits.z_min, limits.z_max)
+
+
+def wind_drift(air: np.ndarray, lean: np.ndarray, active: np.ndarray, limits: UAVLimits) -> np.ndarray:
+    """The velocity (N, 3) by which the wind ``air`` (N, 3, m/s) carries each UAV this step, and the autopilot's
+    wind compensation ``lean`` (N, 3) updated in place for the ``active`` UAVs (README, "Disturbances").
+
+    The commands are ground-velocity set-points of an autopilot that leans into its wind estimate: ``lean``
+    follows ``air`` with time constant ``limits.wind_rejection_tau`` (lean += (air - lean) (1 - exp(-dt/tau))),
+    then its horizontal part is scaled down to at most ``limits.wind_authority`` and its vertical part clipped
+    to +/- the same; the UAV drifts with air - lean. Inactive rows of ``lean`` stay as they are (their drift is
+    not applied by the caller). ``wind_authority = 0`` keeps ``lean`` at zero: the drift is the whole wind.
+    """
+    cap = limits.wind_authority
+    if cap > 0.0:
+        tau = limits.wind_rejection_tau
+        gain = 1.0 if tau == 0.0 else -math.expm1(-limits.dt / tau)
+        new = lean[active] + (air[active] - lean[active]) * gain
+        horizontal = np.hypot(new[:, 0], new[:, 1])
+        over = horizontal > cap
+        new[over, :2] *= (cap / horizontal[over])[:, None]
+        np.clip(new[:, 2], -cap, cap, out=new[:, 2])
+        lean[active] = new
+    return air - lean

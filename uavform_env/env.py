@@ -200,6 +200,8 @@ class FormationEnv(ParallelEnv):
         self.end_reason = self._first_crash = 0  # indices into END_REASONS
         self.prev_actions = np.zeros((n, 3), np.float32)
         self.air = np.zeros((n, 3))   # the wind (m/s) where each UAV was at the last step: gust plus mean
+        self.lean = np.zeros((n, 3))  # the wind each UAV's autopilot compensates (dynamics.wind_drift)
+        self.drift = np.zeros((n, 3))  # the velocity the wind carried each UAV by at the last step: air - lean
         d = cfg.disturbance
         self._gusts = (GustField(self._wind_rng, d.wind_std, d.wind_tau, d.wind_length, GUST_MODES, d.wind_vertical)
                        if d.wind_std > 0 else None)
@@ -333,15 +335,17 @@ class FormationEnv(ParallelEnv):
         d, dt = self.config.disturbance, self.config.uav.dt
         if not d.windy:
             return
-        # The gust field where each UAV is, plus the steady mean wind, integrated as a position disturbance.
+        # The gust field where each UAV is, plus the steady mean wind; the autopilot leans into its estimate of
+        # it, and what it does not compensate carries the UAV.
         air = self.air
         air[:] = 0.0
         air[:, :2] = d.wind_mean
         if self._gusts is not None:
             self._gusts.advance(dt)
             air += self._gusts.at(self.states[:, :3])
-        self.states[self.active, :3] += air[self.active] * dt
         u = self.config.uav
+        self.drift[:] = dynamics.wind_drift(air, self.lean, self.active, u)
+        self.states[self.active, :3] += self.drift[self.active] * dt
         np.clip(self.states[:, 2], u.z_min, u.z_max, out=self.states[:, 2])
 
     # ------------------------------------------------------------------ stages
