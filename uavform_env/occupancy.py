@@ -665,8 +665,11 @@ def _integrate_one(tables, values, bits, counts, owner, used, stamps, stamp, dir
         sx, sy, sz, tx, ty, tz, ddx, ddy, ddz, length = ray_setup(ox, oy, oz, ex, ey, ez, okx, oky, okz, res)
         i, j, k = okx - kx0, oky - ky0, okz - kz0
         ei, ej, ek = ekx - kx0, eky - ky0, ekz - kz0
+        # a walk stays within one voxel of its end keys' box (DDA drift): inside the grid, skip the checks
+        inside = (min(i, ei) >= 2 and min(j, ej) >= 2 and min(k, ek) >= 2 and max(i, ei) < nx - 2
+                  and max(j, ej) < ny - 2 and max(k, ek) < nz - 2)
         while True:
-            if (i | j | k) >= 0 and i < nx and j < ny and k < nz:
+            if inside or ((i | j | k) >= 0 and i < nx and j < ny and k < nz):
                 bi, bj, bk = i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT
                 if bi != cbi or bj != cbj or bk != cbk:
                     c = top[m, bi >> BLOCK_SHIFT, bj >> BLOCK_SHIFT, bk >> BLOCK_SHIFT]
