@@ -677,7 +677,7 @@ def _integrate_one(tables, values, bits, counts, owner, used, stamps, stamp, dir
                     if b < 0:
                         b = _new_block(top, chunks, values, bits, counts, owner, used, m, bi, bj, bk)
                     cbi, cbj, cbk, base = bi, bj, bk, b << (3 * BLOCK_SHIFT)
-                f = base | _offset(i, j, k)
+                f = np.uint64(base | _offset(i, j, k))  # unsigned: no negative-index wrap in the loads
                 changed = True
                 if flat_values[f] != l_min and flat_stamps[f] != stamp:
                     flat_stamps[f] = stamp
