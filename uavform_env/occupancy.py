@@ -36,7 +36,7 @@ import numba
 import numpy as np
 
 from .config import MapConfig
-from .dda import coord_key, grid_origin_key, ray_advance, ray_key_bound, ray_setup
+from .dda import coord_key, grid_origin_key, ray_key_bound, ray_select, ray_setup, ray_step
 
 BLOCK_SHIFT = 3  # blocks of 2**3 = 8 voxels per axis
 BLOCK_VOXELS = 1 << (3 * BLOCK_SHIFT)
@@ -622,7 +622,7 @@ def _integrate_one(tables, values, bits, counts, owner, used, stamps, stamp, dir
 
     A voxel is updated at most once per scan: only if its stamp is not yet this scan's ``stamp``, which
     the update sets. The hit voxels go first (a hit beats a miss), then each ray walks its
-    ``computeRayKeys`` voxels (``ray_setup`` / ``ray_advance``) and applies misses. A miss on a voxel
+    ``computeRayKeys`` voxels (``ray_setup``, ``ray_select``, ``ray_step``) and applies misses. A miss on a voxel
     clamped at l_min changes nothing, so such voxels are passed over without touching their stamps
     (most of a scan once the free space around a UAV is known). The walk keeps the last block looked
     up and resolves a block only when it enters one (the lookup is written out here: an inlined helper
@@ -666,6 +666,7 @@ def _integrate_one(tables, values, bits, counts, owner, used, stamps, stamp, dir
         i, j, k = okx - kx0, oky - ky0, okz - kz0
         ei, ej, ek = ekx - kx0, eky - ky0, ekz - kz0
         # a walk stays within one voxel of its end keys' box (DDA drift): inside the grid, skip the checks
+        on_x, on_y, on_z, _ = ray_select(tx, ty, tz)
         inside = (min(i, ei) >= 2 and min(j, ej) >= 2 and min(k, ek) >= 2 and max(i, ei) < nx - 2
                   and max(j, ej) < ny - 2 and max(k, ek) < nz - 2)
         while True:
@@ -682,8 +683,9 @@ def _integrate_one(tables, values, bits, counts, owner, used, stamps, stamp, dir
                 if flat_values[f] != l_min and flat_stamps[f] != stamp:
                     flat_stamps[f] = stamp
                     _update_voxel(flat_values, flat_bits, counts, f, l_miss, l_min, l_max, l_occ)
-            i, j, k, tx, ty, tz = ray_advance(i, j, k, sx, sy, sz, tx, ty, tz, ddx, ddy, ddz)
-            if ((i == ei) & (j == ej) & (k == ek)) | (min(tx, ty, tz) > length):
+            i, j, k, tx, ty, tz = ray_step(i, j, k, sx, sy, sz, tx, ty, tz, ddx, ddy, ddz, on_x, on_y, on_z)
+            on_x, on_y, on_z, t = ray_select(tx, ty, tz)  # t = min(tx, ty, tz)
+            if ((i == ei) & (j == ej) & (k == ek)) | (t > length):
                 break
     if changed:  # segments stay in the box of their end keys (+1 voxel of DDA drift): the changed region
         dirty[0], dirty[1], dirty[2] = min(dirty[0], max(lo0 - 1, 0)), min(dirty[1], max(lo1 - 1, 0)), \
