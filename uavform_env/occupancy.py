@@ -194,7 +194,7 @@ class MapStore:
         """Insert one scan into each map ``indices[q]``: rays from ``sensor_origins[q]`` to ``endpoints[q]``
         (R, 3), ``hit[q]`` (R,) as in ``OccupancyMap.integrate``. One numba call for all maps."""
         idx = np.ascontiguousarray(indices, dtype=np.int64)
-        if idx.ndim != 1 or np.any((idx < 0) | (idx >= self.n_maps)) or len(np.unique(idx)) != idx.size:
+        if idx.ndim != 1 or np.any((idx < 0) | (idx >= self.n_maps)) or np.bincount(idx).max(initial=0) > 1:
             raise ValueError(f"indices: expected distinct map indices in [0, {self.n_maps - 1}], got {indices!r}")
         o = np.ascontiguousarray(sensor_origins, dtype=np.float64)
         if o.shape != (idx.size, 3) or not np.all(np.isfinite(o)):
