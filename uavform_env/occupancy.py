@@ -623,8 +623,8 @@ def _integrate_one(tables, values, bits, counts, owner, used, stamps, stamp, dir
     A voxel is updated at most once per scan: only if its stamp is not yet this scan's ``stamp``, which
     the update sets. The hit voxels go first (a hit beats a miss), then each ray walks its
     ``computeRayKeys`` voxels (``ray_setup``, ``ray_select``, ``ray_step``) and applies misses. A miss on a voxel
-    clamped at l_min changes nothing, so such voxels are passed over without touching their stamps
-    (most of a scan once the free space around a UAV is known). The walk keeps the last block looked
+    clamped at l_min changes nothing, so such voxels (free space missed in several earlier scans) are
+    passed over without touching their stamps. The walk keeps the last block looked
     up and resolves a block only when it enters one (the lookup is written out here: an inlined helper
     that may call ``_new_block`` costs refcounting on every voxel).
     """
