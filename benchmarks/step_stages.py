@@ -1,10 +1,10 @@
 """Where a FormationEnv step spends its time, per UAV-step, with every UAV flying, next to MPE simple_spread.
 
-    python benchmarks/step_stages.py [--steps 150] [--ns 5 10 50] [--repeats 3]
+    python benchmarks/step_stages.py [--steps 150] [--ns 5 10 50] [--repeats 3] [--clock wall|cpu]
 
 For each N the fusion expert flies forest@1 (seed 0) once, untimed, and its actions are recorded; the
 env then replays them, so every UAV stays alive (a replay that loses a UAV is reported). agent-steps/s
-is N x steps / wall time of the replay loop, the best of ``--repeats`` replays, resets excluded.
+is N x steps / time of the replay loop (``--clock``), the best of ``--repeats`` replays, resets excluded.
 MPE ``simple_spread`` (package ``mpe2``) steps pre-drawn random actions in the same run, at the same N,
 for the ratio. A further replay times each stage of ``FormationEnv.step`` by wrapping the function
 that does it; "rest" is the step's own code (crash checks, endings, the dicts) and the timers' overhead.
@@ -20,6 +20,10 @@ import numpy as np
 
 # (owner, attribute, label): owner "env" is the env instance, "env.<attr>" one of its attributes, else a module
 # whose global the step calls.
+# Timers of --clock: elapsed time, or the process's CPU time (both envs run in this one thread; the CPU
+# time leaves out the waits of a machine shared with other jobs, though not their cache and memory traffic).
+CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
+
 STAGES = (
     ("env", "_validate_actions", "actions"),
     ("uavform_env.dynamics", "step", "dynamics"),
@@ -55,17 +59,17 @@ def expert_actions(n: int, steps: int) -> list[dict]:
     return actions
 
 
-def replay(penv, actions: list[dict]) -> float:
-    """Seconds to replay ``actions`` from a seed-0 reset (the reset excluded)."""
+def replay(penv, actions: list[dict], clock=time.perf_counter) -> float:
+    """Seconds (of ``clock``) to replay ``actions`` from a seed-0 reset (the reset excluded)."""
     penv.reset(seed=0)
-    t0 = time.perf_counter()
+    t0 = clock()
     for acts in actions:
         penv.step(acts)
-    return time.perf_counter() - t0
+    return clock() - t0
 
 
 @contextlib.contextmanager
-def stage_timers(env, totals: dict):
+def stage_timers(env, totals: dict, clock=time.perf_counter):
     """Wrap every function of STAGES so that its calls add their seconds to ``totals[label]``."""
     import importlib
 
@@ -80,9 +84,9 @@ def stage_timers(env, totals: dict):
         inner = getattr(owner, attr)
 
         def timed(*args, _inner=inner, _label=label, **kwargs):
-            t0 = time.perf_counter()
+            t0 = clock()
             out = _inner(*args, **kwargs)
-            totals[_label] = totals.get(_label, 0.0) + time.perf_counter() - t0
+            totals[_label] = totals.get(_label, 0.0) + clock() - t0
             return out
 
         undo.append((owner, attr, owner.__dict__.get(attr)))
@@ -97,24 +101,24 @@ def stage_timers(env, totals: dict):
                 setattr(owner, attr, before)
 
 
-def ours(n: int, steps: int, repeats: int) -> tuple[float, dict, int]:
+def ours(n: int, steps: int, repeats: int, clock=time.perf_counter) -> tuple[float, dict, int]:
     """(agent-steps/s, seconds per UAV-step of each stage, UAVs alive at the end)."""
     from uavform_env import parallel_env
 
     actions = expert_actions(n, steps)
     penv = parallel_env(scenario="forest@1", n_uavs=n, max_cycles=len(actions))
-    best = min(replay(penv, actions) for _ in range(repeats))
+    best = min(replay(penv, actions, clock) for _ in range(repeats))
     alive = int(penv.unwrapped.active.sum())
     totals: dict = {}
-    with stage_timers(penv.unwrapped, totals):
-        wall = replay(penv, actions)
+    with stage_timers(penv.unwrapped, totals, clock):
+        wall = replay(penv, actions, clock)
     uav_steps = n * len(actions)
     stages = {label: totals.get(label, 0.0) / uav_steps for _, _, label in STAGES}
     stages["rest"] = wall / uav_steps - sum(stages.values())
     return uav_steps / best, stages, alive
 
 
-def mpe(n: int, steps: int, repeats: int) -> float:
+def mpe(n: int, steps: int, repeats: int, clock=time.perf_counter) -> float:
     from mpe2 import simple_spread_v3
 
     penv = simple_spread_v3.parallel_env(N=n, max_cycles=steps + 1, continuous_actions=False)
@@ -123,10 +127,10 @@ def mpe(n: int, steps: int, repeats: int) -> float:
     best = np.inf
     for _ in range(repeats):
         penv.reset(seed=0)
-        t0 = time.perf_counter()
+        t0 = clock()
         for acts in actions:
             penv.step(acts)
-        best = min(best, time.perf_counter() - t0)
+        best = min(best, clock() - t0)
     return n * steps / best
 
 
@@ -135,11 +139,14 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=150)
     parser.add_argument("--ns", type=int, nargs="+", default=[5, 10, 50])
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--clock", choices=CLOCKS, default="wall",
+                        help="wall: elapsed time; cpu: this process's CPU time, steadier on a busy machine")
     args = parser.parse_args()
     rows = []
     for n in args.ns:
-        rate, stages, alive = ours(n, args.steps, args.repeats)
-        rows.append((n, rate, mpe(n, args.steps, args.repeats), stages, alive))
+        clock = CLOCKS[args.clock]
+        rate, stages, alive = ours(n, args.steps, args.repeats, clock)
+        rows.append((n, rate, mpe(n, args.steps, args.repeats, clock), stages, alive))
     print(f"{'N':>3} {'uavform agent-steps/s':>22} {'MPE simple_spread':>18} {'ratio':>6} {'alive':>6}")
     for n, rate, ref, _, alive in rows:
         print(f"{n:>3} {rate:>22.0f} {ref:>18.0f} {rate / ref:>6.2f} {alive:>3}/{n}")

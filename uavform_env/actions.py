@@ -11,6 +11,11 @@ def check_actions(actions, possible_agents: list[str], live_agents: list[str], s
 
     ``meaning`` describes the ``size`` action components for the error messages.
     """
+    return dict(zip(actions, action_rows(actions, possible_agents, live_agents, size, meaning)))
+
+
+def action_rows(actions, possible_agents: list[str], live_agents: list[str], size: int, meaning: str) -> np.ndarray:
+    """``check_actions`` as one float64 array (len(actions), size), rows in the dict's order."""
     if not isinstance(actions, dict):
         raise ValueError(f"actions: expected a dict {{agent: array of shape ({size},)}}, got {type(actions).__name__}")
     if actions.keys() != set(live_agents):
@@ -27,7 +32,7 @@ def check_actions(actions, possible_agents: list[str], live_agents: list[str], s
     except (TypeError, ValueError):
         rows = None
     if rows is not None and rows.shape == (len(actions), size) and np.isfinite(rows).all():
-        return dict(zip(actions, np.clip(rows, -1.0, 1.0)))
+        return np.clip(rows, -1.0, 1.0, out=rows)
     for a, act in actions.items():
         arr = np.asarray(act, dtype=np.float64)
         if arr.shape != (size,):

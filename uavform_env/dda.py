@@ -77,7 +77,7 @@ def ray_key_bound(ox, oy, oz, ex, ey, ez, inv_res):
 @numba.njit(cache=True, inline="always")
 def ray_setup(ox, oy, oz, ex, ey, ez, kx, ky, kz, res):
     """``computeRayKeys``' set-up for the segment from (ox, oy, oz) (in voxel (kx, ky, kz)) to (ex, ey, ez):
-    (sx, sy, sz, tx, ty, tz, ddx, ddy, ddz, length) for ``ray_advance``; see ``ray_keys`` for the float32 rules."""
+    (sx, sy, sz, tx, ty, tz, ddx, ddy, ddz, length) for ``ray_select`` and ``ray_step``; see ``ray_keys`` for the float32 rules."""
     dx = np.float32(ex) - np.float32(ox)
     dy = np.float32(ey) - np.float32(oy)
     dz = np.float32(ez) - np.float32(oz)
@@ -91,16 +91,23 @@ def ray_setup(ox, oy, oz, ex, ey, ez, kx, ky, kz, res):
 
 
 @numba.njit(cache=True, inline="always")
-def ray_advance(kx, ky, kz, sx, sy, sz, tx, ty, tz, ddx, ddy, ddz):
-    """One step of the traversal set up by ``ray_setup``: the next voxel and the new border distances.
+def ray_select(tx, ty, tz):
+    """The axis the traversal steps along next, as three flags (``next_axis``' choice), and the distance
+    of the border it crosses there, which is min(tx, ty, tz).
 
-    The axis is ``next_axis``'s, chosen without branches (the axis sequence of a ray defeats branch
-    prediction): selects instead of jumps, which makes the map's walk faster (the sensor's loop, which
-    also needs the crossed border's distance, measured faster with ``next_axis``' branches)."""
+    Selects instead of jumps (the axis sequence of a ray defeats branch prediction), which makes the
+    map's walk faster (the sensor's loop measured faster with ``next_axis``' branches)."""
     x_first = tx < ty
     on_x = x_first & (tx < tz)
     on_y = (not x_first) & (ty < tz)
     on_z = not (on_x | on_y)
+    return on_x, on_y, on_z, tx if on_x else (ty if on_y else tz)
+
+
+@numba.njit(cache=True, inline="always")
+def ray_step(kx, ky, kz, sx, sy, sz, tx, ty, tz, ddx, ddy, ddz, on_x, on_y, on_z):
+    """One step of the traversal set up by ``ray_setup`` along the axis ``ray_select`` chose: the next
+    voxel and the new border distances."""
     return (kx + sx * on_x, ky + sy * on_y, kz + sz * on_z, tx + ddx if on_x else tx, ty + ddy if on_y else ty,
             tz + ddz if on_z else tz)
 
@@ -113,7 +120,7 @@ def ray_keys(ox, oy, oz, ex, ey, ez, res, out):
     and length are formed in float32 as in OctoMap. The origin voxel comes first; the end voxel is
     never included; a ray stops early once it is longer than the segment (OctoMap's guard against
     drift). Writes the keys to ``out`` (K, 3) int64 and returns K. (The map's integrate kernel walks
-    the same ``ray_setup`` / ``ray_advance`` steps without storing the keys.)
+    the same ``ray_setup`` / ``ray_select`` / ``ray_step`` steps without storing the keys.)
     """
     inv_res = 1.0 / res
     kx, ky, kz = coord_key(ox, inv_res), coord_key(oy, inv_res), coord_key(oz, inv_res)
@@ -123,11 +130,13 @@ def ray_keys(ox, oy, oz, ex, ey, ez, res, out):
     out[0, 0], out[0, 1], out[0, 2] = kx, ky, kz
     n = 1
     sx, sy, sz, tx, ty, tz, ddx, ddy, ddz, length = ray_setup(ox, oy, oz, ex, ey, ez, kx, ky, kz, res)
+    on_x, on_y, on_z, _ = ray_select(tx, ty, tz)
     while True:
-        kx, ky, kz, tx, ty, tz = ray_advance(kx, ky, kz, sx, sy, sz, tx, ty, tz, ddx, ddy, ddz)
+        kx, ky, kz, tx, ty, tz = ray_step(kx, ky, kz, sx, sy, sz, tx, ty, tz, ddx, ddy, ddz, on_x, on_y, on_z)
         if kx == ekx and ky == eky and kz == ekz:
             return n
-        if min(tx, ty, tz) > length:
+        on_x, on_y, on_z, t = ray_select(tx, ty, tz)  # t = min(tx, ty, tz)
+        if t > length:
             return n
         out[n, 0], out[n, 1], out[n, 2] = kx, ky, kz
         n += 1

@@ -17,7 +17,7 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from . import dynamics
-from .actions import check_actions
+from .actions import action_rows
 from .config import DisturbanceConfig, EnvConfig, disturbance_preset
 from .dynamics import PSI, STATE_DIM, V, VZ, W
 from .formation import formation_errors, formation_slots, slot_offsets
@@ -325,10 +325,11 @@ class FormationEnv(ParallelEnv):
         return obs, rewards, terminations, truncations, infos
 
     def _validate_actions(self, actions) -> np.ndarray:
-        checked = check_actions(actions, self.possible_agents, self.agents, 3,
-                                "forward speed, yaw rate, climb rate")
+        rows = action_rows(actions, self.possible_agents, self.agents, 3, "forward speed, yaw rate, climb rate")
+        if len(actions) == self.n_uavs and list(actions) == self.possible_agents:  # every agent, in order
+            return rows.astype(np.float32)
         acts = np.zeros((self.n_uavs, 3), np.float32)
-        acts[[self.agent_name_mapping[a] for a in checked]] = list(checked.values())
+        acts[[self.agent_name_mapping[a] for a in actions]] = rows
         return acts
 
     def _apply_wind(self):

@@ -36,7 +36,7 @@ import numba
 import numpy as np
 
 from .config import MapConfig
-from .dda import coord_key, grid_origin_key, ray_advance, ray_key_bound, ray_setup
+from .dda import coord_key, grid_origin_key, ray_key_bound, ray_select, ray_setup, ray_step
 
 BLOCK_SHIFT = 3  # blocks of 2**3 = 8 voxels per axis
 BLOCK_VOXELS = 1 << (3 * BLOCK_SHIFT)
@@ -194,7 +194,7 @@ class MapStore:
         """Insert one scan into each map ``indices[q]``: rays from ``sensor_origins[q]`` to ``endpoints[q]``
         (R, 3), ``hit[q]`` (R,) as in ``OccupancyMap.integrate``. One numba call for all maps."""
         idx = np.ascontiguousarray(indices, dtype=np.int64)
-        if idx.ndim != 1 or np.any((idx < 0) | (idx >= self.n_maps)) or len(np.unique(idx)) != idx.size:
+        if idx.ndim != 1 or np.any((idx < 0) | (idx >= self.n_maps)) or np.bincount(idx).max(initial=0) > 1:
             raise ValueError(f"indices: expected distinct map indices in [0, {self.n_maps - 1}], got {indices!r}")
         o = np.ascontiguousarray(sensor_origins, dtype=np.float64)
         if o.shape != (idx.size, 3) or not np.all(np.isfinite(o)):
@@ -621,10 +621,12 @@ def _integrate_one(tables, values, bits, counts, owner, used, stamps, stamp, dir
     origin (ox, oy, oz) to the float32 ``ends``; the pool has room.
 
     A voxel is updated at most once per scan: only if its stamp is not yet this scan's ``stamp``, which
-    the update sets. Pass r < R visits the hit voxel of ray r (a hit beats a miss: hits go first), pass
-    R + r walks ray r's ``computeRayKeys`` voxels (``ray_setup`` / ``ray_advance``) and applies misses.
-    The last block looked up is kept, so a walk resolves a block only when it enters one (the lookup is
-    written out here: an inlined helper that may call ``_new_block`` costs refcounting on every voxel).
+    the update sets. The hit voxels go first (a hit beats a miss), then each ray walks its
+    ``computeRayKeys`` voxels (``ray_setup``, ``ray_select``, ``ray_step``) and applies misses. A miss on a voxel
+    clamped at l_min changes nothing, so such voxels (free space missed in several earlier scans) are
+    passed over without touching their stamps. The walk keeps the last block looked
+    up and resolves a block only when it enters one (the lookup is written out here: an inlined helper
+    that may call ``_new_block`` costs refcounting on every voxel).
     """
     nx, ny, nz = shape[0], shape[1], shape[2]
     top, chunks = tables
@@ -635,50 +637,61 @@ def _integrate_one(tables, values, bits, counts, owner, used, stamps, stamp, dir
     n_rays = ends.shape[0]
     kx0, ky0, kz0 = key0[0], key0[1], key0[2]
     okx, oky, okz = coord_key(ox, inv_res), coord_key(oy, inv_res), coord_key(oz, inv_res)
-    lo = np.array([okx - kx0, oky - ky0, okz - kz0])
-    hi = lo.copy()
+    lo0, lo1, lo2 = okx - kx0, oky - ky0, okz - kz0
+    hi0, hi1, hi2 = lo0, lo1, lo2
     changed = False
+    for r in range(n_rays):  # the hit voxels, and the box of the end keys
+        i = coord_key(ends[r, 0], inv_res) - kx0
+        j = coord_key(ends[r, 1], inv_res) - ky0
+        k = coord_key(ends[r, 2], inv_res) - kz0
+        lo0, lo1, lo2, hi0, hi1, hi2 = min(lo0, i), min(lo1, j), min(lo2, k), max(hi0, i), max(hi1, j), max(hi2, k)
+        if hit[r] and (i | j | k) >= 0 and i < nx and j < ny and k < nz:
+            bi, bj, bk = i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT
+            c = top[m, bi >> BLOCK_SHIFT, bj >> BLOCK_SHIFT, bk >> BLOCK_SHIFT]
+            b = np.int64(chunks[c, _offset(bi, bj, bk)] if c >= 0 else -1)
+            if b < 0:  # a reused block's old stamps are older than this scan's (see _integrate_maps)
+                b = _new_block(top, chunks, values, bits, counts, owner, used, m, bi, bj, bk)
+            f = (b << (3 * BLOCK_SHIFT)) | _offset(i, j, k)
+            changed = True
+            if flat_stamps[f] != stamp:
+                flat_stamps[f] = stamp
+                _update_voxel(flat_values, flat_bits, counts, f, l_hit, l_min, l_max, l_occ)
     cbi, cbj, cbk, base = np.int64(-1), np.int64(-1), np.int64(-1), np.int64(0)  # the last block looked up
-    for p in range(2 * n_rays):
-        r = p % n_rays
+    for r in range(n_rays):  # the misses
         ex, ey, ez = ends[r, 0], ends[r, 1], ends[r, 2]
         ekx, eky, ekz = coord_key(ex, inv_res), coord_key(ey, inv_res), coord_key(ez, inv_res)
-        if p < n_rays:  # the hit voxel only
-            lo[0], lo[1], lo[2] = min(lo[0], ekx - kx0), min(lo[1], eky - ky0), min(lo[2], ekz - kz0)
-            hi[0], hi[1], hi[2] = max(hi[0], ekx - kx0), max(hi[1], eky - ky0), max(hi[2], ekz - kz0)
-            if not hit[r]:
-                continue
-            kx, ky, kz, update = ekx, eky, ekz, l_hit
-            sx, sy, sz, tx, ty, tz, ddx, ddy, ddz, length = 0, 0, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-        else:
-            if okx == ekx and oky == eky and okz == ekz:
-                continue
-            kx, ky, kz, update = okx, oky, okz, l_miss
-            sx, sy, sz, tx, ty, tz, ddx, ddy, ddz, length = ray_setup(ox, oy, oz, ex, ey, ez, okx, oky, okz, res)
+        if okx == ekx and oky == eky and okz == ekz:
+            continue
+        sx, sy, sz, tx, ty, tz, ddx, ddy, ddz, length = ray_setup(ox, oy, oz, ex, ey, ez, okx, oky, okz, res)
+        i, j, k = okx - kx0, oky - ky0, okz - kz0
+        ei, ej, ek = ekx - kx0, eky - ky0, ekz - kz0
+        # a walk stays within one voxel of its end keys' box (DDA drift): inside the grid, skip the checks
+        on_x, on_y, on_z, _ = ray_select(tx, ty, tz)
+        inside = (min(i, ei) >= 2 and min(j, ej) >= 2 and min(k, ek) >= 2 and max(i, ei) < nx - 2
+                  and max(j, ej) < ny - 2 and max(k, ek) < nz - 2)
         while True:
-            i, j, k = kx - kx0, ky - ky0, kz - kz0
-            if (i | j | k) >= 0 and i < nx and j < ny and k < nz:
+            if inside or ((i | j | k) >= 0 and i < nx and j < ny and k < nz):
                 bi, bj, bk = i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT
                 if bi != cbi or bj != cbj or bk != cbk:
                     c = top[m, bi >> BLOCK_SHIFT, bj >> BLOCK_SHIFT, bk >> BLOCK_SHIFT]
                     b = np.int64(chunks[c, _offset(bi, bj, bk)] if c >= 0 else -1)
-                    if b < 0:  # a reused block's old stamps are older than this scan's (see _integrate_maps)
+                    if b < 0:
                         b = _new_block(top, chunks, values, bits, counts, owner, used, m, bi, bj, bk)
                     cbi, cbj, cbk, base = bi, bj, bk, b << (3 * BLOCK_SHIFT)
-                f = base | _offset(i, j, k)
-                if flat_stamps[f] != stamp:
+                f = np.uint64(base | _offset(i, j, k))  # unsigned: no negative-index wrap in the loads
+                changed = True
+                if flat_values[f] != l_min and flat_stamps[f] != stamp:
                     flat_stamps[f] = stamp
-                    changed = True
-                    _update_voxel(flat_values, flat_bits, counts, f, update, l_min, l_max, l_occ)
-            if p < n_rays:
-                break
-            kx, ky, kz, tx, ty, tz = ray_advance(kx, ky, kz, sx, sy, sz, tx, ty, tz, ddx, ddy, ddz)
-            if ((kx == ekx) & (ky == eky) & (kz == ekz)) | (min(tx, ty, tz) > length):
+                    _update_voxel(flat_values, flat_bits, counts, f, l_miss, l_min, l_max, l_occ)
+            i, j, k, tx, ty, tz = ray_step(i, j, k, sx, sy, sz, tx, ty, tz, ddx, ddy, ddz, on_x, on_y, on_z)
+            on_x, on_y, on_z, t = ray_select(tx, ty, tz)  # t = min(tx, ty, tz)
+            if ((i == ei) & (j == ej) & (k == ek)) | (t > length):
                 break
     if changed:  # segments stay in the box of their end keys (+1 voxel of DDA drift): the changed region
-        for a in range(3):
-            dirty[a] = min(dirty[a], max(lo[a] - 1, 0))
-            dirty[a + 3] = max(dirty[a + 3], min(hi[a] + 1, shape[a] - 1))
+        dirty[0], dirty[1], dirty[2] = min(dirty[0], max(lo0 - 1, 0)), min(dirty[1], max(lo1 - 1, 0)), \
+            min(dirty[2], max(lo2 - 1, 0))
+        dirty[3], dirty[4], dirty[5] = max(dirty[3], min(hi0 + 1, nx - 1)), max(dirty[4], min(hi1 + 1, ny - 1)), \
+            max(dirty[5], min(hi2 + 1, nz - 1))
 
 
 @numba.njit(cache=True)
