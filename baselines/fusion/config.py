@@ -126,13 +126,17 @@ class ExpertConfig(Config):
                        the wall at 0.1-0.3 m/s; without the detour bound a follower preferred an unseen way round
                        a wall's far end to the known 2.6 m opening in it. Followers' rejoin paths keep (d1) alone:
                        with the margin, followers of 10-UAV forest formations lost their way to their slots [X]
+    dwa                the IDWA of spec (c) with the approach speed profile, r_goal 0.1 m, ``dist_cap`` 0.5 m and
+                       E11's rotation cost on the change of the turn rate (``rotation_mode="delta"``): the cost on
+                       the turn rate itself kept a leader in open space from turning toward a goal off its nose [X]
     park_turn          the parked leader turns in place (v = 0) to the heading nearest its own whose follower
                        slots are all free in its own map and inside the world bounds: parked at the goal, it
                        can otherwise leave a slot inside an obstacle, and the formation can never close [X]
     """
 
     dwa: DWAConfig = field(default_factory=lambda: DWAConfig.ablation("IDWA", approach_speed_profile=True,
-                                                                                      r_goal=0.1, dist_cap=0.5))
+                                                                                      r_goal=0.1, dist_cap=0.5,
+                                                                                      rotation_mode="delta"))
     vfh: VFHConfig = field(default_factory=VFHConfig)
     astar: AStarConfig = field(default_factory=lambda: AStarConfig(prune=True, heading_target="visible_goal"))
     use_vfh: bool = True
