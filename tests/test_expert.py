@@ -324,9 +324,15 @@ def test_parked_leader_keeps_station_in_a_breeze():
     assert not penv.unwrapped.crashed.any() and diagnostics[-1].get("arrived")
     drift = np.hypot(states[-300:, 0, 0] - 10.0, states[-300:, 0, 1] - 10.0)
     assert drift.max() < 3.5 and np.median(drift) < 1.0       # what a 20 deg/s unicycle achieves in 0.3 m/s gusts
-    unheld = FusionExpert(ExpertConfig(k_hold=0.0, vane_wind=100.0))   # hovers at v = 0: the gusts carry it off
-    _, _, _, loose = fly(unheld, scn, 700, config=never, disturbance="breeze", seed=1)
-    assert np.median(np.hypot(loose[-300:, 0, 0] - 10.0, loose[-300:, 0, 1] - 10.0)) > 1.5 * np.median(drift)
+    # without the return to the point the gusts carry it off: over two gust sequences (one alone is a coin toss
+    # of where the random walk ends) it sits further out than the held leader
+    held, loose = [drift], []
+    for seed, policy in ((0, FusionExpert()), (0, FusionExpert(ExpertConfig(k_hold=0.0, vane_wind=100.0))),
+                         (1, FusionExpert(ExpertConfig(k_hold=0.0, vane_wind=100.0)))):
+        _, _, _, other = fly(policy, scn, 700, config=never, disturbance="breeze", seed=seed)
+        (held if policy.config.k_hold > 0.0 else loose).append(np.hypot(other[-300:, 0, 0] - 10.0,
+                                                                            other[-300:, 0, 1] - 10.0))
+    assert np.median(np.concatenate(loose)) > 1.5 * np.median(np.concatenate(held))
 
 
 # ----------------------------------------------------------------------------- wall gap (3D vs 2D)
