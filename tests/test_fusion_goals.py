@@ -55,3 +55,9 @@ def test_the_rotation_cost_on_the_turn_rate_itself_is_what_turned_the_leader_thr
     cfg = ExpertConfig()
     info, _ = fly(across(90.0, 3.0, 7.0), replace(cfg, dwa=replace(cfg.dwa, rotation_mode="abs")))
     assert info["success"] == 0
+
+
+def test_a_formation_turned_away_from_a_lower_goal_reaches_it_and_closes():
+    """Three UAVs (followers' slots at the leader's altitude), the goal behind them and 5 m lower."""
+    info, _ = fly(across(180.0, 7.0, 2.0, n_uavs=3), steps=450)
+    assert info["success"] == 1
