@@ -17,6 +17,7 @@ from ..vfh3d import VFHConfig
 WEIGHT_NAMES = ("alpha0", "beta", "gamma", "eps0", "k1", "k2", "k3")
 ASTAR_LAYERS = ("passable", "band")
 REJOIN_MODES = ("astar", "trail")
+PARK_HEADINGS = ("nearest", "followers")
 
 
 @dataclass(frozen=True)
@@ -132,6 +133,11 @@ class ExpertConfig(Config):
     park_turn          the parked leader turns in place (v = 0) to the heading nearest its own whose follower
                        slots are all free in its own map and inside the world bounds: parked at the goal, it
                        can otherwise leave a slot inside an obstacle, and the formation can never close [X]
+    park_heading       which heading with free slots the arriving leader parks on: "nearest" its own (turned
+                       outward in ``2 pi / 72`` steps); "followers" the one whose slots lie nearest the followers'
+                       broadcast positions (the sum of their horizontal distances), kept while its slots stay free.
+                       Parked on its own heading after a docking turn, a leader swung the slots of a column's tail
+                       12 m away from the followers trailing it [X]
     """
 
     dwa: DWAConfig = field(default_factory=lambda: DWAConfig.ablation("IDWA", approach_speed_profile=True,
@@ -198,6 +204,7 @@ class ExpertConfig(Config):
     guard_clearance: float = 0.4
     guard_speed: float = 0.3
     park_turn: bool = True
+    park_heading: str = "followers"
     lateral_emergency_to_dwa: bool = True
 
     BOUNDS: ClassVar[dict] = {
@@ -208,6 +215,7 @@ class ExpertConfig(Config):
                                       "explore_unknown")},
         "astar_layer": one_of(ASTAR_LAYERS),
         "rejoin": one_of(REJOIN_MODES),
+        "park_heading": one_of(PARK_HEADINGS),
         "dwa_map_level": integer(0, 4),
         "debounce": integer(1, 100),
         "trail_window": integer(1),
