@@ -240,6 +240,21 @@ def test_parked_leader_turns_until_every_slot_is_free():
                                                   0.7)
 
 
+def test_followers_take_the_column_fallback_only_until_the_leader_parks_at_the_goal():
+    """``_leader_at_goal``: the broadcast leader slower than ``leader_stopped_speed`` and within ``arrive_radius`` of
+    the goal (horizontally); then a follower closes on its own slot, the one the env judges (``column_at_goal``)."""
+    from types import SimpleNamespace
+
+    from baselines.fusion.controller import _leader_at_goal
+
+    cfg = ExpertConfig()
+    def at(x, v):
+        return SimpleNamespace(goal=np.array([10.0, 0.0, 3.0]), leader_state=np.array([x, 0.0, 5.0, 0.0, v, 0.0, 0.0]))
+    assert _leader_at_goal(at(9.8, 0.0), cfg)                      # 0.2 m off, at rest (altitude does not count)
+    assert not _leader_at_goal(at(9.6, 0.0), cfg)                  # at rest 0.4 m off: not parked at the goal
+    assert not _leader_at_goal(at(10.0, 0.06), cfg)                # on the goal but still moving
+
+
 def test_weight_names_follow_the_config():
     cfg = ExpertConfig()
     w = cfg.weights()

@@ -27,6 +27,11 @@ class ExpertConfig(Config):
     use_vfh            3D fusion (True) or the planar formation of the 2D baselines (False)
     neighbour_prediction  neighbours move at their broadcast velocity in DWA (g6; E6 switches it off)
     shape_switching    a follower whose slot is blocked in its own map falls back to a column slot (g7) [X]
+    column_at_goal     the column fallback also once the leader is parked at its goal (broadcast speed below
+                       ``leader_stopped_speed`` within ``arrive_radius`` of the goal); False: the follower then
+                       closes on its own slot, which is what the env judges (DWA keeps its clearance): a follower
+                       whose map showed a voxel within r_uav + r_safe + a voxel of a slot 0.76 m from a tree flew
+                       to the column slot 11 m away and stayed there [X]
     astar_layer        "passable": a raster cell blocks only where no free vertical gap is left in the
                        altitude band (the fusion controller may climb); "band": any obstacle at the
                        formation altitude blocks (planar controllers) [X]
@@ -148,6 +153,7 @@ class ExpertConfig(Config):
     use_vfh: bool = True
     neighbour_prediction: bool = True
     shape_switching: bool = True
+    column_at_goal: bool = False
     astar_layer: str = "passable"
     dwa_map_level: int = 0
     replan_check_period: float = 0.5
@@ -209,7 +215,7 @@ class ExpertConfig(Config):
 
     BOUNDS: ClassVar[dict] = {
         "dwa": instance_of(DWAConfig), "vfh": instance_of(VFHConfig), "astar": instance_of(AStarConfig),
-        **{name: boolean for name in ("use_vfh", "neighbour_prediction", "shape_switching", "climb_target_limit",
+        **{name: boolean for name in ("use_vfh", "neighbour_prediction", "shape_switching", "column_at_goal", "climb_target_limit",
                                       "park_turn", "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap",
                                       "rejoin_hidden", "final_approach_free", "wind_drift", "dock_approach",
                                       "explore_unknown")},

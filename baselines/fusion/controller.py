@@ -474,7 +474,7 @@ class FusionExpert(OnboardPolicy):
         lead = view.leader_state
         offset = view.slot_offset
         column = False
-        if cfg.shape_switching:
+        if cfg.shape_switching and (cfg.column_at_goal or not _leader_at_goal(view, cfg)):
             if _occupied_within(view, local, view.slot, lim.r_uav + lim.r_safe + view.occupancy.resolution):
                 mem.column_until = t + cfg.column_hold
             column = t < mem.column_until
@@ -583,6 +583,12 @@ def _altitude_target(view, mem: _UAVMemory, cfg: ExpertConfig) -> float:
         return z_goal
     d = math.hypot(view.goal[0] - view.state[0], view.goal[1] - view.state[1])
     return z_goal + math.copysign(min(abs(rise), cfg.glide_slope * max(0.0, d - cfg.dock_radius)), rise)
+
+
+def _leader_at_goal(view, cfg: ExpertConfig) -> bool:
+    """Whether the leader's broadcast shows it parked (``rules.leader_parked``) within ``arrive_radius`` of the goal."""
+    lead = view.leader_state
+    return leader_parked(view, cfg) and math.hypot(view.goal[0] - lead[0], view.goal[1] - lead[1]) < cfg.arrive_radius
 
 
 def _occupied_within(view, local: _Local, point: np.ndarray, radius: float) -> bool:
