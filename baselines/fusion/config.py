@@ -17,6 +17,7 @@ from ..vfh3d import VFHConfig
 WEIGHT_NAMES = ("alpha0", "beta", "gamma", "eps0", "k1", "k2", "k3")
 ASTAR_LAYERS = ("passable", "band")
 REJOIN_MODES = ("astar", "trail")
+PARK_HEADINGS = ("nearest", "followers")
 
 
 @dataclass(frozen=True)
@@ -26,6 +27,11 @@ class ExpertConfig(Config):
     use_vfh            3D fusion (True) or the planar formation of the 2D baselines (False)
     neighbour_prediction  neighbours move at their broadcast velocity in DWA (g6; E6 switches it off)
     shape_switching    a follower whose slot is blocked in its own map falls back to a column slot (g7) [X]
+    column_at_goal     the column fallback also once the leader is parked at its goal (broadcast speed below
+                       ``leader_stopped_speed`` within ``arrive_radius`` of the goal); False: the follower then
+                       closes on its own slot, which is what the env judges (DWA keeps its clearance): a follower
+                       whose map showed a voxel within r_uav + r_safe + a voxel of a slot 0.76 m from a tree flew
+                       to the column slot 11 m away and stayed there [X]
     astar_layer        "passable": a raster cell blocks only where no free vertical gap is left in the
                        altitude band (the fusion controller may climb); "band": any obstacle at the
                        formation altitude blocks (planar controllers) [X]
@@ -126,18 +132,28 @@ class ExpertConfig(Config):
                        the wall at 0.1-0.3 m/s; without the detour bound a follower preferred an unseen way round
                        a wall's far end to the known 2.6 m opening in it. Followers' rejoin paths keep (d1) alone:
                        with the margin, followers of 10-UAV forest formations lost their way to their slots [X]
+    dwa                the IDWA of spec (c) with the approach speed profile, r_goal 0.1 m, ``dist_cap`` 0.5 m and
+                       E11's rotation cost on the change of the turn rate (``rotation_mode="delta"``): the cost on
+                       the turn rate itself kept a leader in open space from turning toward a goal off its nose [X]
     park_turn          the parked leader turns in place (v = 0) to the heading nearest its own whose follower
                        slots are all free in its own map and inside the world bounds: parked at the goal, it
                        can otherwise leave a slot inside an obstacle, and the formation can never close [X]
+    park_heading       which heading with free slots the arriving leader parks on: "nearest" its own (turned
+                       outward in ``2 pi / 72`` steps); "followers" the one whose slots lie nearest the followers'
+                       broadcast positions (the sum of their horizontal distances), kept while its slots stay free.
+                       Parked on its own heading after a docking turn, a leader swung the slots of a column's tail
+                       12 m away from the followers trailing it [X]
     """
 
     dwa: DWAConfig = field(default_factory=lambda: DWAConfig.ablation("IDWA", approach_speed_profile=True,
-                                                                                      r_goal=0.1, dist_cap=0.5))
+                                                                                      r_goal=0.1, dist_cap=0.5,
+                                                                                      rotation_mode="delta"))
     vfh: VFHConfig = field(default_factory=VFHConfig)
     astar: AStarConfig = field(default_factory=lambda: AStarConfig(prune=True, heading_target="visible_goal"))
     use_vfh: bool = True
     neighbour_prediction: bool = True
     shape_switching: bool = True
+    column_at_goal: bool = False
     astar_layer: str = "passable"
     dwa_map_level: int = 0
     replan_check_period: float = 0.5
@@ -194,16 +210,18 @@ class ExpertConfig(Config):
     guard_clearance: float = 0.4
     guard_speed: float = 0.3
     park_turn: bool = True
+    park_heading: str = "followers"
     lateral_emergency_to_dwa: bool = True
 
     BOUNDS: ClassVar[dict] = {
         "dwa": instance_of(DWAConfig), "vfh": instance_of(VFHConfig), "astar": instance_of(AStarConfig),
-        **{name: boolean for name in ("use_vfh", "neighbour_prediction", "shape_switching", "climb_target_limit",
+        **{name: boolean for name in ("use_vfh", "neighbour_prediction", "shape_switching", "column_at_goal", "climb_target_limit",
                                       "park_turn", "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap",
                                       "rejoin_hidden", "final_approach_free", "wind_drift", "dock_approach",
                                       "explore_unknown")},
         "astar_layer": one_of(ASTAR_LAYERS),
         "rejoin": one_of(REJOIN_MODES),
+        "park_heading": one_of(PARK_HEADINGS),
         "dwa_map_level": integer(0, 4),
         "debounce": integer(1, 100),
         "trail_window": integer(1),

@@ -474,7 +474,7 @@ class FusionExpert(OnboardPolicy):
         lead = view.leader_state
         offset = view.slot_offset
         column = False
-        if cfg.shape_switching:
+        if cfg.shape_switching and (cfg.column_at_goal or not _leader_at_goal(view, cfg)):
             if _occupied_within(view, local, view.slot, lim.r_uav + lim.r_safe + view.occupancy.resolution):
                 mem.column_until = t + cfg.column_hold
             column = t < mem.column_until
@@ -585,6 +585,12 @@ def _altitude_target(view, mem: _UAVMemory, cfg: ExpertConfig) -> float:
     return z_goal + math.copysign(min(abs(rise), cfg.glide_slope * max(0.0, d - cfg.dock_radius)), rise)
 
 
+def _leader_at_goal(view, cfg: ExpertConfig) -> bool:
+    """Whether the leader's broadcast shows it parked (``rules.leader_parked``) within ``arrive_radius`` of the goal."""
+    lead = view.leader_state
+    return leader_parked(view, cfg) and math.hypot(view.goal[0] - lead[0], view.goal[1] - lead[1]) < cfg.arrive_radius
+
+
 def _occupied_within(view, local: _Local, point: np.ndarray, radius: float) -> bool:
     """``view.occupancy.occupied_within(point, radius)``, answered from the cycle's local voxels when they hold every
     voxel that query could find (leaf level, the ball around ``point`` inside the local sphere with a voxel to
@@ -687,23 +693,35 @@ def _slots_free(view, psi: float, margin: float) -> bool:
 
 
 def _park_heading(view, mem: _UAVMemory, cfg: ExpertConfig, n: int = 72) -> float:
-    """The parked leader's heading: its own unless a slot is blocked, else the nearest heading with free slots."""
+    """The parked leader's heading: the one it parked on while those slots stay free, else one of the headings
+    (its own, then turned outward in steps of 2 pi / ``n``) with free slots, chosen by ``cfg.park_heading``; none
+    frees every slot: its own."""
     lim = view.limits
     margin = lim.r_uav + lim.r_safe + view.occupancy.resolution
     if mem.park_psi is not None and _slots_free(view, mem.park_psi, margin):
         return mem.park_psi
     psi = float(view.state[PSI])
-    if _slots_free(view, psi, margin):
-        mem.park_psi = psi
-        return psi
-    for k in range(1, n // 2 + 1):
-        for sign in (1.0, -1.0):
-            cand = wrap(psi + sign * k * 2.0 * math.pi / n)
-            if _slots_free(view, cand, margin):
-                mem.park_psi = cand
-                return cand
-    mem.park_psi = psi                          # no heading frees every slot: stay as parked
-    return psi
+    turns = [psi] + [wrap(psi + sign * k * 2.0 * math.pi / n) for k in range(1, n // 2 + 1) for sign in (1.0, -1.0)]
+    if cfg.park_heading == "nearest":
+        mem.park_psi = next((cand for cand in turns if _slots_free(view, cand, margin)), psi)
+    else:
+        mem.park_psi = _heading_nearest_followers(view, [cand for cand in turns if _slots_free(view, cand, margin)],
+                                                  psi)
+    return mem.park_psi
+
+
+def _heading_nearest_followers(view, headings: list, default: float) -> float:
+    """Of ``headings``, the one whose slots lie nearest the live followers' broadcast positions (the sum of the
+    horizontal distances; the first on a tie); ``default`` when ``headings`` is empty."""
+    if not headings:
+        return default
+    alive = view.neighbour_alive
+    if not alive.any():
+        return headings[0]
+    followers = view.neighbour_states[alive, :2]
+    offsets = view.offsets[view.neighbour_ids[alive]]
+    cost = [float(np.hypot(*(view.state[:2] + _rotated(h, offsets) - followers).T).sum()) for h in headings]
+    return headings[int(np.argmin(cost))]
 
 
 def _climb_rate(elevation: float, v: float, dz_goal: float, cfg: ExpertConfig, lim) -> float:
