@@ -41,7 +41,7 @@ def hold(preset: str, seed: int, seconds: float, oracle: bool, uav: UAVLimits) -
     env = penv.unwrapped
     lim = env.config.uav
     start = env.states[0, :2].copy()
-    mem = SimpleNamespace(wind=np.zeros(2), prev_pose=None)
+    mem = SimpleNamespace(wind=np.zeros(2), drift_ms=0.0, prev_pose=None, held=False)
     worst = 0.0
     while penv.agents:
         view = SimpleNamespace(state=env.states[0].copy(), limits=lim)

@@ -11,7 +11,8 @@ from baselines.dwa import dwa_plan
 from baselines.fusion import ExpertConfig, FusionExpert
 from baselines.fusion.controller import _UAVMemory
 from baselines.fusion.rules import (RULES, Command, Cycle, braking_fallback, dock_approach, dock_turn, drift_guard,
-                                    emergency_escape, reverse_turn, station_keep, vertical_separation, wind_estimate)
+                                    drift_persistence, emergency_escape, gust_speed, reverse_turn, station_keep,
+                                    vertical_separation, wind_estimate)
 from baselines.vfh3d import VFHPlanner
 from uavform_env import EnvConfig, parallel_env
 
@@ -37,9 +38,9 @@ class FakeMap:
 
 
 def view(state=(0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0), is_leader=True, goal=(10.0, 0.0, 3.0), leader_speed=0.5,
-         voxels=(), alive=(), index=0, neighbour_ids=()):
+         voxels=(), alive=(), index=0, neighbour_ids=(), limits=LIM):
     return SimpleNamespace(state=np.array(state, dtype=np.float64), is_leader=is_leader,
-                           goal=np.array(goal, dtype=np.float64), limits=LIM, config=EnvConfig(),
+                           goal=np.array(goal, dtype=np.float64), limits=limits, config=EnvConfig(),
                            leader_state=np.array([0.0, 0.0, 3.0, 0.0, leader_speed, 0.0, 0.0]),
                            occupancy=FakeMap(voxels), neighbour_alive=np.array(alive, dtype=bool), index=index,
                            neighbour_ids=np.array(neighbour_ids, dtype=np.int64))
@@ -159,20 +160,50 @@ def test_vertical_separation_moves_the_higher_uav_up_and_the_lower_down():
     assert floor.vz == LIM.vz_max                                  # at the band's floor: up
 
 
+UNOPPOSED = LIM.replace(wind_authority=0.0)     # the airframe the wind carries whole (drift_persistence = 1)
+
+
 def test_station_keep_flies_back_and_against_the_wind_and_rests_in_still_air():
     mem = _UAVMemory()
-    held = station_keep(view(), mem, CFG, np.array([0.1, 0.0]), 0.5)      # at the point, still air: turn to heading
-    assert (held.v, held.w) == (0.0, W_MAX)
-    behind = station_keep(view(), mem, CFG, np.array([-1.0, 0.0]), 0.0)   # pushed 1 m past: turn, no speed
+    held = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([0.1, 0.0]), 0.5)   # at the point, still air
+    assert (held.v, held.w) == (0.0, W_MAX) and mem.held                                # stops, turns to heading
+    mem.held = False
+    behind = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([-1.0, 0.0]), 0.0)   # 1 m past: turn, no speed
     assert (behind.v, behind.w) == (0.0, W_MAX)
     mem.wind = np.array([-0.3, 0.0])                                      # a 0.3 m/s headwind
-    ahead = station_keep(view(), mem, CFG, np.array([1.0, 0.0]), 0.0)
+    ahead = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([1.0, 0.0]), 0.0)
     assert ahead.v == pytest.approx(CFG.k_hold * 1.0 + 0.3) and ahead.w == 0.0
-    on_point = station_keep(view(), mem, CFG, np.array([0.0, 0.0]), 0.0)  # on the point: fly against the wind
-    assert on_point.v == pytest.approx(0.3) and on_point.w == 0.0
+    on_point = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([0.0, 0.0]), 0.0)   # on the point: fly
+    assert on_point.v == pytest.approx(0.3) and on_point.w == 0.0                           # against the wind
     mem.wind = np.array([0.0, 0.3])                                       # crosswind from the right: nose into it
-    cross = station_keep(view(), mem, CFG, np.array([0.0, 0.0]), 0.0)
+    cross = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([0.0, 0.0]), 0.0)
     assert cross.v == pytest.approx(0.0, abs=1e-12) and cross.w == -W_MAX
+
+
+def test_station_keep_counters_only_the_drift_the_autopilot_leaves_and_holds_until_released():
+    mem = _UAVMemory(wind=np.array([-0.3, 0.0]))                          # a 0.3 m/s head drift, default airframe
+    ahead = station_keep(view(), mem, CFG, np.array([1.0, 0.0]), 0.0)
+    share = drift_persistence(LIM, 1.0 / CFG.k_hold)                       # 0.5 / 2 (1 - e^-4) = 0.2454
+    assert share == pytest.approx(0.25 * (1.0 - math.exp(-4.0)))
+    assert ahead.v == pytest.approx(CFG.k_hold * 1.0 + 0.3 * share) and not mem.held
+    rest = _UAVMemory()
+    assert station_keep(view(), rest, CFG, np.array([0.1, 0.0]), 0.0).v == 0.0 and rest.held
+    for off in (0.3, CFG.hold_release - 1e-9):                            # carried off, within hold_release: held
+        cmd = station_keep(view(), rest, CFG, np.array([off, 0.0]), 0.0)
+        assert (cmd.v, cmd.w) == (0.0, 0.0) and rest.held
+    out = station_keep(view(), rest, CFG, np.array([CFG.hold_release + 0.05, 0.0]), 0.0)   # released: flies back
+    assert not rest.held and out.v == pytest.approx(CFG.k_hold * (CFG.hold_release + 0.05))
+    fresh = _UAVMemory()                                                  # not yet held: 0.3 m is outside hold_radius
+    assert station_keep(view(), fresh, CFG, np.array([0.3, 0.0]), 0.0).v > 0.0 and not fresh.held
+
+
+def test_drift_persistence_known_answers():
+    assert drift_persistence(UNOPPOSED, 3.0) == 1.0                       # the wind carries the UAV whole
+    assert drift_persistence(LIM.replace(wind_rejection_tau=0.0), 3.0) == 0.0   # an instant autopilot
+    assert drift_persistence(LIM, math.inf) == 0.0
+    tau = LIM.wind_rejection_tau                                          # d tau (1 - e^(-T/tau)) / T
+    assert drift_persistence(LIM, 3.0) == pytest.approx(tau / 3.0 * (1.0 - math.exp(-3.0 / tau)))
+    assert drift_persistence(LIM, 1e-6) == pytest.approx(1.0, abs=1e-5)  # over an instant all of it
 
 
 def test_dock_approach_flies_the_home_in_law_only_when_docking():
@@ -202,10 +233,22 @@ def test_wind_estimate_is_the_drift_the_commands_do_not_explain():
     wind_estimate(view(state=(0.7 * dt, 0.1 * dt, 3.0, 0.0, 0.5, 0.0, 0.0)), mem, CFG)
     gain = min(1.0, dt / CFG.wind_tau)
     assert mem.wind == pytest.approx([0.2 * gain, 0.1 * gain])
+    assert mem.drift_ms == pytest.approx(min(1.0, dt / CFG.gust_tau) * (0.2 ** 2 + 0.1 ** 2))
+    assert gust_speed(mem) == pytest.approx(math.sqrt(mem.drift_ms))
     still = _UAVMemory()
     for k in range(3):                                                      # exactly the model: no wind
         wind_estimate(view(state=(0.5 * k * dt, 0.0, 3.0, 0.0, 0.5, 0.0, 0.0)), still, CFG)
-    assert still.wind == pytest.approx([0.0, 0.0], abs=1e-12)
+    assert still.wind == pytest.approx([0.0, 0.0], abs=1e-12) and still.drift_ms == pytest.approx(0.0, abs=1e-20)
+
+
+def test_gust_speed_is_the_rms_drift_of_alternating_gusts():
+    """Drift alternating +-0.4 m/s along y: the mean wind estimate stays near zero, the gust speed nears 0.4."""
+    mem, dt = _UAVMemory(), LIM.dt
+    y = 0.0
+    for k in range(400):
+        y += (0.4 if k % 2 else -0.4) * dt
+        wind_estimate(view(state=(0.0, y, 3.0, 0.0, 0.0, 0.0, 0.0)), mem, CFG)
+    assert abs(mem.wind[1]) < 0.05 and gust_speed(mem) == pytest.approx(0.4, rel=0.01)
 
 
 def _flight(policy, steps=25):
@@ -250,13 +293,13 @@ def test_planners_must_be_callable():
 
 def test_hold_point_keeps_the_clearance_a_gust_takes_to_turn_into():
     """A UAV with no way to its goal 1 m from the world's x = 0 bound (0.7 m clearance) holds where it is in still
-    air (r_safe suffices); in a 0.25 m/s wind it needs r_safe + hold_drift_time x 0.25 = 1.325 m and holds at the
-    nearest grid point that has it, 0.8 m farther in (grid ``geofence_spacing`` = 0.4 m); a post there moves it on,
-    and with nowhere clear enough it holds at the clearest point it can reach."""
+    air (r_safe suffices); drifting at 0.25 m/s (``rules.gust_speed``) it needs r_safe + hold_drift_time x 0.25 =
+    1.325 m and holds at the nearest grid point that has it, 0.8 m farther in (grid ``geofence_spacing`` = 0.4 m);
+    a post there moves it on, and with nowhere clear enough it holds at the clearest point it can reach."""
     def holding(wind, voxels=()):
         v = view(state=(1.0, 3.0, 3.0, 0.0, 0.0, 0.0, 0.0), voxels=voxels)
         v.bounds_lo, v.bounds_hi = np.array([0.0, 0.0, 0.0]), np.array([20.0, 6.0, 12.0])
-        mem = _UAVMemory(wind=np.array(wind))
+        mem = _UAVMemory(drift_ms=float(np.dot(wind, wind)))
         return FusionExpert._hold_point(v, CFG, FusionExpert._hold_margin(v, mem, CFG))
     assert holding([0.0, 0.0]).tolist() == [1.0, 3.0]
     margin = LIM.r_safe + CFG.hold_drift_time * 0.25

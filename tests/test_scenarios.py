@@ -233,13 +233,20 @@ def test_validate_accepts_a_good_scenario():
     (dict(start=(31.0, 10.0, 3.0)), r"leader start \(31.00.*outside the world bounds"),
     (dict(start=(1.0, 10.0, 3.0)), r"follower 1 start slot \(-1.00.*outside the world bounds"),
     (dict(start=(5.0, 10.0, 0.2)), "leader start.*outside the altitude band"),
-    (dict(goal=(25.0, 10.0, 10.5)), "goal.*outside the altitude band"),
     (dict(start=(5.0, 11.0, 3.0)), r"follower 1 start slot \(3.00, 13.00, 3.00\) has clearance 0.000 m < .* 0.5 m"),
     (dict(goal=(25.0, 14.5, 3.0)), "goal .* has clearance -0.500"),
 ])
 def test_validate_rejects(mission, match):
     with pytest.raises(ValueError, match=match):
         validate_scenario(simple_scenario(**mission), LIMITS, Z_REF)
+
+
+def test_validate_accepts_a_goal_outside_the_altitude_band_but_not_outside_the_world():
+    """An unreachable goal is a mission, flown to the step limit (issue 13); a goal outside the world is an error."""
+    validate_scenario(simple_scenario(goal=(25.0, 10.0, 10.5)), LIMITS, Z_REF)      # above z_max
+    validate_scenario(simple_scenario(goal=(25.0, 10.0, 0.2)), LIMITS, Z_REF)       # below z_min
+    with pytest.raises(ValueError, match="goal.*outside the world bounds"):
+        validate_scenario(simple_scenario(goal=(25.0, 10.0, 40.0)), LIMITS, Z_REF)
 
 
 def test_validate_uses_the_given_limits_and_altitude():

@@ -890,11 +890,13 @@ def validate_scenario(scn: Scenario, limits: UAVLimits, z_ref: float, world: Wor
     ``source`` names the scenario in the message (e.g. ``"scenario file my.toml"``); by default its name,
     version and seed.
 
-    Checked: the leader's start and the goal, and every follower's start slot, lie inside the bounds
-    and the altitude band with clearance >= r_uav + r_safe; the formation's goal slots pass the same
-    test at some heading of the leader (the start-to-goal bearing, the start heading or one of 36
-    evenly spaced ones: the arrival heading is the policy's choice); the formation holds n_uavs; the
-    spacing exceeds two UAV radii. Slot altitudes follow the mission's ``slot_altitude``.
+    Checked: the leader's start and every follower's start slot lie inside the bounds and the altitude band
+    with clearance >= r_uav + r_safe; the goal passes the same test except the altitude band, and so do the
+    formation's goal slots at some heading of the leader (the start-to-goal bearing, the start heading or one of
+    36 evenly spaced ones: the arrival heading is the policy's choice); the formation holds n_uavs; the
+    spacing exceeds two UAV radii. Slot altitudes follow the mission's ``slot_altitude``. A goal outside the
+    altitude band is a mission no UAV can complete, not malformed input: it is flown until the step limit, and a
+    policy is expected to see that and hold (issue 13: the expert reports it ``stuck``).
     """
     if not isinstance(scn, Scenario):
         raise ValueError(f"scn: expected a Scenario, got {type(scn).__name__}")
@@ -922,10 +924,10 @@ def validate_scenario(scn: Scenario, limits: UAVLimits, z_ref: float, world: Wor
     except ValueError as exc:
         problems.append(str(exc))
     pts = np.array(points)
-    bad, describe = _standing(scn, limits, world, pts)
+    bad, describe = _standing(scn, limits, world, pts, band=np.array([name != "goal" for name in names]))
     problems += [f"{names[k]} {describe(k)}" for k in np.flatnonzero(bad)]
     if goal_slots is not None:
-        blocked, describe = _standing(scn, limits, world, goal_slots.reshape(-1, 3))
+        blocked, describe = _standing(scn, limits, world, goal_slots.reshape(-1, 3), band=False)
         blocked = blocked.reshape(goal_slots.shape[:2])
         if blocked.any(axis=1).all():
             j = int(np.flatnonzero(blocked[0])[0])
@@ -937,14 +939,15 @@ def validate_scenario(scn: Scenario, limits: UAVLimits, z_ref: float, world: Wor
                          + "; ".join(problems))
 
 
-def _standing(scn: Scenario, limits: UAVLimits, world: World, pts: np.ndarray):
-    """Which points (m, 3) a UAV cannot stand on (outside the bounds or the band, or too close to an
-    obstacle), and ``describe(k)``: point k and why, for the error message."""
+def _standing(scn: Scenario, limits: UAVLimits, world: World, pts: np.ndarray, band=True):
+    """Which points (m, 3) a UAV cannot stand on (outside the bounds, or the altitude band where ``band`` (a
+    bool, or one per point) says so, or too close to an obstacle), and ``describe(k)``: point k and why, for
+    the error message."""
     lo, hi = np.array(scn.bounds_lo), np.array(scn.bounds_hi)
     r_clear = limits.r_uav + limits.r_safe
     clearance = world.clearance(pts)
     outside = np.any((pts < lo) | (pts > hi), axis=1)
-    off_band = (pts[:, 2] < limits.z_min) | (pts[:, 2] > limits.z_max)
+    off_band = ((pts[:, 2] < limits.z_min) | (pts[:, 2] > limits.z_max)) & band
     close = clearance < r_clear
 
     def describe(k: int) -> str:

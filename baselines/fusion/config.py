@@ -113,8 +113,12 @@ class ExpertConfig(Config):
     hold_radius, k_hold, vane_wind  station keeping (``rules.station_keep``): a holding UAV (the arrived leader at
                        its goal, a UAV with no way to its goal) flies the air velocity k_hold (p_hold - p) - wind
                        (nose toward it, speed |.| cos(bearing error)); within ``hold_radius`` with that below
-                       ``vane_wind`` it stops and turns to its park heading. A UAV hovering at v = 0 otherwise
-                       drifts with the wind into whatever is downwind [X]
+                       ``vane_wind`` it stops and turns to its park heading, and flies back only once the wind
+                       has carried it ``hold_release`` m off: a leader that turned toward every gust swept its
+                       followers' slots round the goal (under ``breeze`` a follower chased its slot until time-out,
+                       session 7). A UAV hovering at v = 0 otherwise drifts with the wind into whatever is downwind
+                       (under the unopposed wind model; with the autopilot of ``UAVLimits.wind_authority`` only the
+                       gusts' changes carry it) [X]
     hold_drift_time, hold_search  a UAV with no way to its goal holds the nearest point within ``hold_search`` m
                        (reached along a clear straight segment) whose horizontal clearance to its own map near the
                        flight altitude and to the world's bounds is at least r_safe plus the drift the estimated wind
@@ -123,7 +127,12 @@ class ExpertConfig(Config):
                        past what the point's clearance covers. In still air it holds where it stopped [X]
     wind_tau           time constant (s) of the low-pass filter that estimates the wind from the UAV's own drift
                        (``rules.wind_estimate``: observed minus commanded motion) [X]
-    wind_drift         DWA's rollouts drift with the estimated wind (``dwa_plan(drift=...)``): a sample that holds
+    gust_tau           time constant (s) of the mean square of the UAV's drift (``rules.gust_speed``, its root: the
+                       drift speed gusts cause, which the wind margins scale with) [X]
+    wind_margin        DWA's obstacle voxels grow by ``wind_margin`` (s) x the RMS drift, at most half the UAV's
+                       current clearance (a UAV the gusts carried inside its margin can still hold or leave) [X]
+    wind_drift         DWA's rollouts drift with the estimated wind (``dwa_plan(drift=...)``) times the share of it
+                       the autopilot leaves over the horizon (``rules.drift_persistence``): a sample that holds
                        still while the wind carries the UAV into an obstacle is inadmissible [X]
     path_margin, margin_detour  the leader's A* route is the path on its raster
                        inflated by r_uav + r_safe plus ``path_margin`` when that path is at most ``margin_detour`` m
@@ -193,8 +202,10 @@ class ExpertConfig(Config):
     gap_speed: float = 0.3
     climb_target_limit: bool = True
     hold_radius: float = 0.25
+    hold_release: float = 0.4
     k_hold: float = 0.5
     wind_tau: float = 1.0
+    gust_tau: float = 5.0
     hold_drift_time: float = 4.5
     hold_search: float = 4.0
     wind_drift: bool = True
@@ -229,11 +240,11 @@ class ExpertConfig(Config):
                                             "column_hold", "vfh_neighbour_radius", "rejoin_distance", "dock_radius",
                                             "trail_spacing", "arrive_radius", "stuck_window", "gap_lookahead",
                                             "gap_depth", "gap_margin", "k_gap", "gap_speed", "leader_stopped_speed",
-                                            "hold_radius", "k_hold", "separation_margin",
+                                            "hold_radius", "hold_release", "k_hold", "separation_margin",
                                             "hold_drift_time", "hold_search", "glide_slope", "wind_margin", "vane_wind",
                                             "approach_radius", "guard_clearance", "guard_speed", "path_margin",
                                             "margin_detour")},
-        "wind_tau": in_range(0.0, lo_open=True),
+        **{name: in_range(0.0, lo_open=True) for name in ("wind_tau", "gust_tau")},
         "leader_speed_cap": in_range(0.0, 1.0, lo_open=True),
         "yield_factor": in_range(0.0, 1.0),
         "min_leader_scale": in_range(0.0, 1.0),

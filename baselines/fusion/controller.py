@@ -32,7 +32,8 @@ from ..vfh3d import VFHPlanner
 from .config import ExpertConfig
 from .kernels import (closest_approach_of, columns_without_gap, gap_altitude_kernel, in_sphere, live_within,
                       mark_cells, open_level_way, predicted_movers, segment_clear, surface_clearance)
-from .rules import RULES, Command, Cycle, bearing_error, clamp, leader_parked, station_keep, wind_estimate
+from .rules import (RULES, Command, Cycle, bearing_error, clamp, drift_persistence, gust_speed, leader_parked,
+                    station_keep, wind_estimate)
 
 
 @dataclass
@@ -52,7 +53,9 @@ class _UAVMemory(PlannerMemory):
     best_goal_distance: float = math.inf
     last_progress_time: float = 0.0
     wind: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    drift_ms: float = 0.0
     prev_pose: tuple | None = None
+    held: bool = False
     hold_xy: np.ndarray | None = None
     hold_margin: float = 0.0
     cruise_z: float | None = None
@@ -173,7 +176,7 @@ class FusionExpert(OnboardPolicy):
     def _hold_margin(view, mem: _UAVMemory, cfg: ExpertConfig) -> float:
         """[X] ``hold_drift_time``: the horizontal clearance a UAV holding a point needs: r_safe plus the drift the
         estimated wind causes in ``hold_drift_time`` (the time to turn the nose into a gust from abeam)."""
-        return view.limits.r_safe + cfg.hold_drift_time * math.hypot(mem.wind[0], mem.wind[1])
+        return view.limits.r_safe + cfg.hold_drift_time * gust_speed(mem)
 
     @staticmethod
     def _hold_point(view, cfg: ExpertConfig, margin: float) -> np.ndarray:
@@ -214,9 +217,9 @@ class FusionExpert(OnboardPolicy):
 
     @staticmethod
     def _arrived(view, mem: _UAVMemory, cfg: ExpertConfig) -> bool:
-        """Whether the leader has come within ``arrive_radius`` of the goal (horizontally), now or before."""
+        """Whether the leader has come within ``arrive_radius`` of a goal in reach (horizontally), now or before."""
         pos = view.state
-        if math.hypot(view.goal[0] - pos[0], view.goal[1] - pos[1]) < cfg.arrive_radius:
+        if math.hypot(view.goal[0] - pos[0], view.goal[1] - pos[1]) < cfg.arrive_radius and _goal_in_band(view):
             mem.arrived = True
         return mem.arrived
 
@@ -320,12 +323,14 @@ class FusionExpert(OnboardPolicy):
                                                           cfg.approach_radius)
         fence = geofence_points(pos, local.reach, view.bounds_lo, view.bounds_hi, cfg.geofence_spacing)
         radii = np.zeros(len(obstacles) + len(fence))                      # the fence points have radius 0
-        radii[:len(obstacles)] = radius + cfg.wind_margin * math.hypot(mem.wind[0], mem.wind[1])
+        # the wind margin, never more than half the clearance the UAV has: a UAV the gusts carried inside it can
+        # still hold or leave (every sample would otherwise be inadmissible, and it would brake where it is)
+        radii[:len(obstacles)] = radius + min(cfg.wind_margin * gust_speed(mem), 0.5 * max(0.0, clearance_now))
         if len(fence):
             obstacles = np.concatenate([obstacles, fence])
         alive_pos, alive_vel = local.movers_pos[view.neighbour_alive], local.movers_vel[view.neighbour_alive]
         still = mem.wind[0] == 0.0 and mem.wind[1] == 0.0
-        drift = mem.wind if cfg.wind_drift and not still else None        # the rollouts drift with the wind
+        drift = mem.wind * drift_persistence(lim, dwa_cfg.T_p) if cfg.wind_drift and not still else None
 
         def plan(vz):
             return self.dwa(s, lim, dwa_cfg, vertical.heading_goal, obstacles, radii, vz_cmd=vz,
@@ -369,6 +374,8 @@ class FusionExpert(OnboardPolicy):
     # ------------------------------------------------------------------ targets
     def _leader_target(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float):
         lim = view.limits
+        if not _goal_in_band(view):                     # no altitude of the band comes within r_goal of the goal
+            return None, None, None, None
         lookahead = self._guidance(view, mem, cfg, t, view.goal[:2])
         if lookahead is None:
             return None, None, None, None
@@ -572,12 +579,13 @@ def _altitude_target(view, mem: _UAVMemory, cfg: ExpertConfig) -> float:
     """The altitude a UAV flies to. A follower: its slot's (``view.slot``, placed by ``formation.formation_slots``:
     z_ref + dz for version-1 missions, the leader's altitude + dz otherwise). The leader: its cruise altitude
     (where it started) until the goal is near, then a glide path of slope ``glide_slope`` (altitude change per
-    horizontal metre) down or up to the goal's altitude, reached at ``dock_radius`` from the goal."""
+    horizontal metre) down or up to the goal's altitude (kept inside the altitude band), reached at ``dock_radius``
+    from the goal."""
     if not view.is_leader:
         return float(view.slot[2])
     if mem.cruise_z is None:
         mem.cruise_z = float(view.state[2])
-    z_goal = float(view.goal[2])
+    z_goal = clamp(float(view.goal[2]), view.limits.z_min, view.limits.z_max)
     rise = mem.cruise_z - z_goal
     if rise == 0.0:
         return z_goal
@@ -589,6 +597,13 @@ def _leader_at_goal(view, cfg: ExpertConfig) -> bool:
     """Whether the leader's broadcast shows it parked (``rules.leader_parked``) within ``arrive_radius`` of the goal."""
     lead = view.leader_state
     return leader_parked(view, cfg) and math.hypot(view.goal[0] - lead[0], view.goal[1] - lead[1]) < cfg.arrive_radius
+
+
+def _goal_in_band(view) -> bool:
+    """Whether a UAV inside the altitude band [z_min, z_max] can come within the env's r_goal of the goal: a goal
+    further above or below is unreachable (the leader reports ``stuck`` and holds, issue 13)."""
+    lim, r_goal, z = view.limits, view.config.episode.r_goal, float(view.goal[2])
+    return lim.z_min - r_goal < z < lim.z_max + r_goal
 
 
 def _occupied_within(view, local: _Local, point: np.ndarray, radius: float) -> bool:

@@ -191,15 +191,18 @@ def station_keep(view, mem, cfg, hold_xy, heading: float) -> Command:
     """[X] ``hold_radius``, ``k_hold``, ``vane_wind``: a UAV holding a point (the arrived leader at its goal; a UAV
     with no way to its goal, where it stopped) keeps it against the wind. The air velocity it needs is
     u = k_hold (p_hold - p) - w (return to the point and cancel the wind ``mem.wind`` its own drift estimates);
+    of the drift only what persists over 1 / k_hold s (``drift_persistence``: the autopilot cancels the rest);
     a unicycle with v >= 0 has no lateral control, so it turns its nose toward u and flies at |u| times the
     cosine of the bearing error (0 beyond 90 degrees). Within ``hold_radius`` of the point with |u| below
-    ``vane_wind`` (still air) it stops and turns to ``heading``. The returned ``vz`` is 0 (the caller holds
-    altitude)."""
+    ``vane_wind`` (still air) it stops and turns to ``heading``, and stays stopped (``mem.held``) until the wind
+    has carried it ``hold_release`` from the point: every return turns the nose, and with it a leader's follower
+    slots. The returned ``vz`` is 0 (the caller holds altitude)."""
     s, lim = view.state, view.limits
     to_hold = np.asarray(hold_xy, dtype=np.float64) - s[:2]
-    u = cfg.k_hold * to_hold - mem.wind
-    speed = math.hypot(u[0], u[1])
-    if math.hypot(to_hold[0], to_hold[1]) <= cfg.hold_radius and speed <= cfg.vane_wind:
+    u = cfg.k_hold * to_hold - mem.wind * drift_persistence(lim, 1.0 / cfg.k_hold if cfg.k_hold > 0.0 else math.inf)
+    speed, dist = math.hypot(u[0], u[1]), math.hypot(to_hold[0], to_hold[1])
+    mem.held = dist <= cfg.hold_release if mem.held else dist <= cfg.hold_radius and speed <= cfg.vane_wind
+    if mem.held:
         return Command(0.0, clamp(wrap(heading - s[PSI]), -lim.w_max, lim.w_max), 0.0)
     err = bearing_error(s, u)
     return Command(clamp(speed * math.cos(err), 0.0, lim.v_max), clamp(err, -lim.w_max, lim.w_max), 0.0)
@@ -228,19 +231,42 @@ def home_in(view, mem, cfg, point_xy) -> Command:
 
 
 def wind_estimate(view, mem, cfg) -> None:
-    """[X] ``wind_tau``: the horizontal wind from the UAV's own drift. The last cycle's pose moved by the commands
-    now in its state (the kinematic model of spec (a)) predicts this pose; what is left over per second is
-    the drift, low-pass filtered with time constant ``wind_tau`` into ``mem.wind`` (zero in still air)."""
+    """[X] ``wind_tau``, ``gust_tau``: the horizontal wind from the UAV's own drift. The last cycle's pose moved by
+    the commands now in its state (the kinematic model of spec (a)) predicts this pose; what is left over per
+    second is the drift (the wind its autopilot has not compensated), low-pass filtered with time constant
+    ``wind_tau`` into ``mem.wind``, and its squared speed with ``gust_tau`` into ``mem.drift_ms`` (both zero in
+    still air)."""
     s, dt = view.state, view.limits.dt
     prev = mem.prev_pose
     if prev is not None:
         x, y, _, _ = integrate(prev[0], prev[1], 0.0, prev[2], s[V], s[W], 0.0, dt)
+        drift_x, drift_y = (s[0] - x) / dt, (s[1] - y) / dt
         gain, wind_x, wind_y = min(1.0, dt / cfg.wind_tau), float(mem.wind[0]), float(mem.wind[1])
-        mem.wind = np.array([wind_x + gain * ((s[0] - x) / dt - wind_x), wind_y + gain * ((s[1] - y) / dt - wind_y)])
+        mem.wind = np.array([wind_x + gain * (drift_x - wind_x), wind_y + gain * (drift_y - wind_y)])
+        mem.drift_ms += min(1.0, dt / cfg.gust_tau) * (drift_x * drift_x + drift_y * drift_y - mem.drift_ms)
     mem.prev_pose = (float(s[0]), float(s[1]), float(s[PSI]))
 
 
+def gust_speed(mem) -> float:
+    """The UAV's typical drift speed (m/s): the root mean square of its drift over ``gust_tau`` (``wind_estimate``).
+    Under gusts the drift changes faster than ``mem.wind`` follows; this is what a wind margin must cover."""
+    return math.sqrt(mem.drift_ms)
+
+
 # ---------------------------------------------------------------------- helpers (the controller uses them too)
+def drift_persistence(lim, horizon: float) -> float:
+    """The share of a drift d felt now that carries on over ``horizon`` s, as a constant velocity with the same
+    displacement: the airframe's autopilot cancels it with time constant tau = ``wind_rejection_tau``, so the UAV
+    moves d tau (1 - exp(-horizon / tau)) (``uavform_env.dynamics.wind_drift``); with no wind authority the wind
+    carries it whole (1)."""
+    tau = lim.wind_rejection_tau
+    if lim.wind_authority == 0.0:
+        return 1.0
+    if tau == 0.0 or horizon == math.inf:
+        return 0.0
+    return tau / horizon * -math.expm1(-horizon / tau)
+
+
 def clamp(x: float, lo: float, hi: float) -> float:
     """``x`` limited to [lo, hi] (np.clip's result for one number, without its array overhead)."""
     return float(min(max(x, lo), hi))
