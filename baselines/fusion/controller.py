@@ -449,9 +449,8 @@ class FusionExpert(OnboardPolicy):
         onward = self._search(blocked, ahead, goal, lim, margin, cfg.margin_detour)
         if onward is None:
             return path
-        straight_on = np.vstack([pos, onward.points])
-        if route_cost(straight_on, psi, L, metres_per_rad) < cost:
-            return GlobalPath(straight_on, cfg.astar.window, cfg.astar.allow_corner_cut)
+        if L + route_cost(onward.points, psi, L, metres_per_rad) < cost:      # still heading psi at the point ahead
+            return GlobalPath(np.vstack([pos, onward.points]), cfg.astar.window, cfg.astar.allow_corner_cut)
         return path
 
     def _search(self, blocked, start, goal, lim, margin: float, detour: float) -> GlobalPath | None:
