@@ -141,6 +141,13 @@ class ExpertConfig(Config):
                        the wall at 0.1-0.3 m/s; without the detour bound a follower preferred an unseen way round
                        a wall's far end to the known 2.6 m opening in it. Followers' rejoin paths keep (d1) alone:
                        with the margin, followers of 10-UAV forest formations lost their way to their slots [X]
+    route_turn_cost    the leader's A* route is also planned from the point L_a (``astar.lookahead``) straight on
+                       along its heading (when that leg is free), and of the two it flies the one whose length
+                       plus its turn (the bearing of its point L_a along it off the heading) times
+                       leader_speed_cap * v_max / w_max (the metres forgone while turning at w_max) is smaller
+                       (``controller.route_cost``): with the E11 cost on the change of the turn rate the leader
+                       turned at once onto a route only as long as one straight on, and in the unknown
+                       ``classic-2d`` "extended" maze that route led into a pocket seen closed only on arrival [X]
     dwa                the IDWA of spec (c) with the approach speed profile, r_goal 0.1 m, ``dist_cap`` 0.5 m and
                        E11's rotation cost on the change of the turn rate (``rotation_mode="delta"``): the cost on
                        the turn rate itself kept a leader in open space from turning toward a goal off its nose [X]
@@ -210,6 +217,7 @@ class ExpertConfig(Config):
     hold_search: float = 4.0
     wind_drift: bool = True
     explore_unknown: bool = True
+    route_turn_cost: bool = True
     path_margin: float = 0.5
     margin_detour: float = 2.0
     dock_approach: bool = True
@@ -229,7 +237,7 @@ class ExpertConfig(Config):
         **{name: boolean for name in ("use_vfh", "neighbour_prediction", "shape_switching", "column_at_goal", "climb_target_limit",
                                       "park_turn", "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap",
                                       "rejoin_hidden", "final_approach_free", "wind_drift", "dock_approach",
-                                      "explore_unknown")},
+                                      "explore_unknown", "route_turn_cost")},
         "astar_layer": one_of(ASTAR_LAYERS),
         "rejoin": one_of(REJOIN_MODES),
         "park_heading": one_of(PARK_HEADINGS),

@@ -429,9 +429,35 @@ class FusionExpert(OnboardPolicy):
                 and view.prior.kind == "none"):
             path = self._search(self._blocked_raster(view, cfg, seen=False), start, goal, lim, margin,
                                 cfg.margin_detour)                                         # the unseen ways
+        if path is not None and view.is_leader and cfg.route_turn_cost:
+            path = self._heading_route(view, blocked, goal, path, margin)
         mem.path, mem.path_found, mem.plan_goal = path, path is not None, np.array(goal_xy, dtype=np.float64)
         mem.last_plan_time = t
         mem.replans += 1
+        return path
+
+    def _heading_route(self, view, blocked, goal, path: GlobalPath, margin: float) -> GlobalPath:
+        """``route_turn_cost``: ``path``, or the route that first flies the lookahead L_a straight on along the heading
+        (when that leg is free) and then A*'s path from there, whichever costs less by ``route_cost``; not searched when
+        ``path`` leaves within a raster cell of the nose at L_a (the two are the same route there)."""
+        cfg, lim = self.config, view.limits
+        L, psi, pos = cfg.astar.lookahead, float(view.state[PSI]), view.state[:2]
+        metres_per_rad = cfg.leader_speed_cap * lim.v_max / lim.w_max
+        cost = route_cost(path.points, psi, L, metres_per_rad)
+        if cost - path.length <= metres_per_rad * self.raster.res / L:     # on the nose within a raster cell at L_a
+            return path
+        ahead = pos + L * np.array([math.cos(psi), math.sin(psi)])
+        lo, hi = self._raster_box()
+        if np.any(ahead < lo) or np.any(ahead > hi):
+            return path
+        leg = GlobalPath(np.array([pos, ahead]))
+        if leg.corridor_blocked(inflate(blocked, lim.r_uav + lim.r_safe, self.raster.res), self.raster):
+            return path
+        onward = self._search(blocked, ahead, goal, lim, margin, cfg.margin_detour)
+        if onward is None:
+            return path
+        if L + route_cost(onward.points, psi, L, metres_per_rad) < cost:      # still heading psi at the point ahead
+            return GlobalPath(np.vstack([pos, onward.points]), cfg.astar.window, cfg.astar.allow_corner_cut)
         return path
 
     def _search(self, blocked, start, goal, lim, margin: float, detour: float) -> GlobalPath | None:
@@ -575,6 +601,16 @@ class FusionExpert(OnboardPolicy):
 
 
 # ---------------------------------------------------------------------- helpers
+def route_cost(points: np.ndarray, psi: float, lookahead: float, metres_per_rad: float) -> float:
+    """A route's length plus the distance the leader forgoes while it turns from heading ``psi`` onto the route: the
+    bearing of the route's point ``lookahead`` m along it (or its end), times ``metres_per_rad`` (speed over turn
+    rate: a unicycle turns in place at w_max), spec [X] ``route_turn_cost``."""
+    arc = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(points, axis=0).T))))
+    d = points[min(int(np.searchsorted(arc, lookahead)), len(points) - 1)] - points[0]
+    turn = abs(wrap(math.atan2(d[1], d[0]) - psi)) if d[0] or d[1] else 0.0
+    return float(arc[-1]) + metres_per_rad * turn
+
+
 def _altitude_target(view, mem: _UAVMemory, cfg: ExpertConfig) -> float:
     """The altitude a UAV flies to. A follower: its slot's (``view.slot``, placed by ``formation.formation_slots``:
     z_ref + dz for version-1 missions, the leader's altitude + dz otherwise). The leader: its cruise altitude
