@@ -56,7 +56,7 @@ def cycle(v, mem=None, goal=(10.0, 0.0), lookahead=(10.0, 0.0), heading_goal=(10
 
 def test_rules_are_named_and_ordered():
     assert [r.__name__ for r in RULES] == ["braking_fallback", "dock_turn", "dock_approach", "reverse_turn",
-                                           "drift_guard", "vertical_separation", "emergency_escape"]
+                                           "gap_turn", "drift_guard", "vertical_separation", "emergency_escape"]
     assert all(r.__doc__ for r in RULES)
 
 

@@ -47,6 +47,12 @@ class ExpertConfig(Config):
                        place toward its target when that lies more than this far off its nose and at least
                        e_f / 2 away; DWA's rotation cost and sum-normalised heading term otherwise hold it at
                        rest there (w = 0 wins at v = 0) [X]
+    slot_brake         while the leader is within ``dock_radius`` of its goal (where it will stop), a follower in
+                       formation (not on a rejoin path) flies no faster than it can stop, at the
+                       airframe's a_max, within its horizontal distance to the slot plus the leader's own braking
+                       distance: v <= sqrt(v_leader^2 + 2 a_max d). Catching up at 0.9 m/s behind a leader that
+                       parked, a follower overshot its slot by 1 m and spent the rest of the episode turning back
+                       (wall-gap v1-dev s200120 breeze) [X]
     pursuit_speed_cap  cap the speed at w_max / kappa, kappa = 2 sin(theta) / d the pure-pursuit curvature onto the
                        lookahead point (distance d, bearing theta off the nose; d / 2 beyond 90 degrees): the
                        turn-rate limit then lets the UAV steer onto the point instead of overshooting a corner
@@ -97,6 +103,18 @@ class ExpertConfig(Config):
                        vertical run through the next ``gap_depth`` m of obstacle (3D VFH+'s 5x5 window cannot
                        resolve gaps of about 2 m) with altitude gain ``k_gap``, at most ``gap_speed`` m/s
                        and with leaf voxels as DWA obstacles while it passes [X]
+    gap_hold           with a known gap ahead (the gap rule finds the slot's or cruise altitude blocked within
+                       ``gap_lookahead`` and returns another), LEVEL mode holds the gap's altitude, not the slot's:
+                       3D VFH+ sees a level way at the UAV's own altitude inside the gap while the altitude hold
+                       pulled a follower back to its slot's, too near the gap's edge for DWA, and it slid along the
+                       wall behind it to time-out (wall-gap v1-dev s200120 breeze, s200118). Off by default: on
+                       the calm slice (expert-dev/calm-suite.toml) it cost two random-3d episodes, where the rule
+                       lifted followers off their slots' altitude over obstacles they could pass level, and gained
+                       none (20/34 with it, 22/34 without, 21/34 before all of gap_hold, gap_turn, slot_brake) [X]
+    gap_turn_angle     a UAV steering through a known gap in a wall ahead (the gap rule active) turns in place
+                       when its heading goal lies more than this far off its nose: DWA's clearance term kept a
+                       follower that arrived along the wall parallel to it, sliding past the gap (rule
+                       ``gap_turn``; pi disables it) [X]
     climb_target_limit in CLIMB, when 3D VFH+'s elevation points toward the target altitude, the climb rate is
                        at most ``k_z`` times the altitude error: the 5-degree elevation cells never give 0,
                        so a follower parked at its slot (target ~1 m away) otherwise oscillates +/- 1 m
@@ -208,6 +226,9 @@ class ExpertConfig(Config):
     k_gap: float = 1.0
     gap_speed: float = 0.3
     climb_target_limit: bool = True
+    gap_hold: bool = False
+    slot_brake: bool = True
+    gap_turn_angle: float = math.radians(45.0)
     hold_radius: float = 0.25
     hold_release: float = 0.4
     k_hold: float = 0.5
@@ -234,7 +255,7 @@ class ExpertConfig(Config):
 
     BOUNDS: ClassVar[dict] = {
         "dwa": instance_of(DWAConfig), "vfh": instance_of(VFHConfig), "astar": instance_of(AStarConfig),
-        **{name: boolean for name in ("use_vfh", "neighbour_prediction", "shape_switching", "column_at_goal", "climb_target_limit",
+        **{name: boolean for name in ("use_vfh", "neighbour_prediction", "shape_switching", "column_at_goal", "climb_target_limit", "gap_hold", "slot_brake",
                                       "park_turn", "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap",
                                       "rejoin_hidden", "final_approach_free", "wind_drift", "dock_approach",
                                       "explore_unknown", "route_turn_cost")},
@@ -259,6 +280,7 @@ class ExpertConfig(Config):
         "level_window": in_range(0.0, math.pi),
         "dock_turn_angle": in_range(0.0, math.pi),
         "reverse_turn_angle": in_range(0.0, math.pi),
+        "gap_turn_angle": in_range(0.0, math.pi),
         "geofence_spacing": in_range(0.05),
         "e0": in_range(0.0),
     }

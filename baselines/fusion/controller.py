@@ -92,6 +92,7 @@ class _Vertical(NamedTuple):
     obstacles: np.ndarray
     radius: float
     vfh: object
+    gap: bool = False
 
 
 class FusionExpert(OnboardPolicy):
@@ -160,7 +161,7 @@ class FusionExpert(OnboardPolicy):
         vertical = self._vertical_decision(view, mem, cfg, target, local, z_slot)
         cmd, res, clearance_now, obstacles, radii, docking = self._dwa(view, mem, cfg, target, vertical, local)
         cycle = Cycle(view, mem, cfg, target.goal, target.lookahead, vertical.heading_goal, res, vertical.vfh,
-                      local.movers_pos, local.movers_vel, obstacles, radii, docking)
+                      local.movers_pos, local.movers_vel, obstacles, radii, docking, vertical.gap)
         for rule in RULES:
             rule(cmd, cycle)
         self.diagnostics[view.agent] = {
@@ -300,10 +301,12 @@ class FusionExpert(OnboardPolicy):
             vz = _climb_rate(r.elevation, s[V], z_goal - pos[2], cfg, lim)
         elif mode == BLOCKED:
             vz = 0.0
+        elif mode == LEVEL and gap_z is not None and cfg.gap_hold:
+            vz = self._hold_altitude(view, cfg, gap_z)
         if not r.blocked and not level_way and gap_z is None:
             az = r.azimuth                          # follow 3D VFH+ around what DWA cannot see past
             heading_goal = pos[:2] + cfg.climb_lookahead * np.array([math.cos(az), math.sin(az)])
-        return _Vertical(vz, v_cap, heading_goal, obstacles, radius, r)
+        return _Vertical(vz, v_cap, heading_goal, obstacles, radius, r, gap_z is not None)
 
     # ------------------------------------------------------------------ stage 3: DWA
     def _dwa(self, view, mem: _UAVMemory, cfg: ExpertConfig, target: _Target, vertical: _Vertical, local: _Local):
@@ -553,7 +556,10 @@ class FusionExpert(OnboardPolicy):
             to_slot = slot_now - view.state[:2]
             e_par = float(np.linalg.norm(to_slot)) * max(0.0, math.cos(bearing_error(view.state, to_slot)))
         v_ref = clamp(lead[V] + cfg.k_f * e_par, 0.0, lim.v_max)
-        return goal, lookahead, None, v_ref
+        arriving = math.hypot(view.goal[0] - lead[0], view.goal[1] - lead[1]) < cfg.dock_radius
+        v_cap = _slot_brake_cap(lead[V], math.hypot(slot_now[0] - view.state[0], slot_now[1] - view.state[1]),
+                                lim.a_max) if cfg.slot_brake and arriving else None
+        return goal, lookahead, v_cap, v_ref
 
     # ------------------------------------------------------------------ neighbours (g6)
     def _neighbours(self, view, cfg: ExpertConfig):
@@ -711,6 +717,12 @@ def _follower_errors(view) -> np.ndarray:
     slots = s[:2] + _rotated(s[PSI], view.offsets[view.neighbour_ids])
     alive = view.neighbour_alive
     return np.linalg.norm(view.neighbour_states[alive, :2] - slots[alive], axis=1)
+
+
+def _slot_brake_cap(v_leader: float, distance: float, a_max: float) -> float:
+    """[X] ``slot_brake``: the highest speed from which a follower ``distance`` m from its slot stops, braking at
+    ``a_max``, no farther than the slot will have moved when a leader at ``v_leader`` brakes as hard."""
+    return math.sqrt(v_leader * v_leader + 2.0 * a_max * distance)
 
 
 def _pursuit_cap(state, point, w_max: float, v_cap: float) -> float:

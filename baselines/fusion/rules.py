@@ -38,7 +38,8 @@ class Cycle(NamedTuple):
     (DWA's goal) and lookahead point, the heading goal DWA steered for, DWA's and 3D VFH+'s results
     (``vfh`` None in planar mode), the neighbours as predicted movers (g6) and DWA's obstacle points
     (own-map voxels and the world's bounds) with their radii, and whether the UAV is on its final approach to
-    a fixed target (``docking``)."""
+    a fixed target (``docking``), and whether the vertical decision steers through a known gap in a wall
+    ahead (``gap``: the gap rule found the preferred altitude blocked and returned another)."""
 
     view: object
     mem: object
@@ -53,6 +54,7 @@ class Cycle(NamedTuple):
     obstacles: np.ndarray = np.empty((0, 3))
     radii: np.ndarray = np.empty(0)
     docking: bool = False
+    gap: bool = False
 
 
 # ---------------------------------------------------------------------- the rules, in order
@@ -109,6 +111,19 @@ def reverse_turn(cmd: Command, c: Cycle) -> None:
     to_lookahead = c.lookahead - s[:2]
     if abs(bearing_error(s, to_lookahead)) > c.cfg.reverse_turn_angle:
         cmd.v, cmd.w, cmd.turning = 0.0, turn_toward(s, to_lookahead, c.view.limits.w_max), True
+
+
+def gap_turn(cmd: Command, c: Cycle) -> None:
+    """[X] ``gap_turn_angle``: a UAV steering through a known gap in a wall ahead (``Cycle.gap``) turns in place
+    when its heading goal lies more than ``gap_turn_angle`` off its nose (unless another turn fired). Arrived
+    along the wall, DWA's clearance term kept the nose parallel to it, and the UAV slid along the wall beside
+    the gap instead of turning into it (wall-gap v1-dev s200120 breeze: a follower to time-out)."""
+    if cmd.turning or not c.gap:
+        return
+    s = c.view.state
+    to_goal = c.heading_goal - s[:2]
+    if abs(bearing_error(s, to_goal)) > c.cfg.gap_turn_angle:
+        cmd.v, cmd.w, cmd.turning = 0.0, turn_toward(s, to_goal, c.view.limits.w_max), True
 
 
 def drift_guard(cmd: Command, c: Cycle) -> None:
@@ -182,7 +197,7 @@ def emergency_escape(cmd: Command, c: Cycle) -> None:
         cmd.vz = 0.0                    # the escape would fly into a neighbour (above or below)
 
 
-RULES = (braking_fallback, dock_turn, dock_approach, reverse_turn, drift_guard, vertical_separation, emergency_escape)
+RULES = (braking_fallback, dock_turn, dock_approach, reverse_turn, gap_turn, drift_guard, vertical_separation, emergency_escape)
 """The rules after DWA, in the order they act on the command (later ones override earlier ones)."""
 
 
