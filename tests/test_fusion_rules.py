@@ -352,3 +352,37 @@ def test_search_keeps_path_margin_off_walls_and_falls_back_to_a_narrow_way():
     near_wall = np.array([10.0 - 0.75, 2.0])                        # 0.75 m before the wall: free for (d1) only
     to_wall = expert._search(detour, start, near_wall, LIM, CFG.path_margin, CFG.margin_detour)
     assert np.allclose(to_wall.points[-1], [9.25, 2.25])             # ends in the goal's cell, not snapped off
+
+
+def test_drift_guard_clearance_grows_with_the_gust_speed():
+    gusty = _UAVMemory(drift_ms=0.25)                              # RMS drift 0.5 m/s
+    near = dict(admissible=False, obstacles=[[-0.9, 0.0, 3.0]], radius=0.1)   # 0.5 m clearance, behind
+    off = ExpertConfig(guard_gust_time=0.0, guard_hover_speed=0.0)
+    cfg = ExpertConfig(guard_gust_time=1.0, guard_hover_speed=0.1)  # guard clearance 0.4 + 1.0 x 0.5 = 0.9 m
+    still = Command(0.0, 0.0, 0.0)
+    drift_guard(still, cycle(view(), gusty, cfg=off, **near))      # without: 0.5 m >= 0.4 m, it brakes as before
+    assert (still.v, still.w) == (0.0, 0.0)
+    flees = Command(0.0, 0.0, 0.0)
+    drift_guard(flees, cycle(view(), gusty, cfg=cfg, **near))      # inside 0.9 m: flies off, away is ahead
+    assert flees.v == pytest.approx(cfg.guard_speed) and flees.w == 0.0
+    calm = Command(0.0, 0.0, 0.0)
+    drift_guard(calm, cycle(view(), _UAVMemory(), cfg=cfg, **near))   # no gusts: the plain 0.4 m
+    assert (calm.v, calm.w) == (0.0, 0.0)
+
+
+def test_drift_guard_moves_a_hovering_uav_off_an_obstacle_in_gusts_even_when_dwa_finds_a_way():
+    gusty = _UAVMemory(drift_ms=0.25)                              # RMS drift 0.5 m/s: gust standoff 0.5 m
+    near = dict(admissible=True, obstacles=[[-0.8, 0.0, 3.0]], radius=0.1)   # 0.4 m clearance, behind
+    cfg = ExpertConfig(guard_gust_time=1.0, guard_hover_speed=0.1)
+    hover = Command(0.0, W_MAX, 0.0)                               # DWA: turn in place
+    drift_guard(hover, cycle(view(), gusty, cfg=cfg, **near))
+    assert hover.v == pytest.approx(cfg.guard_speed) and hover.w == 0.0
+    moving = Command(0.5, 0.0, 0.0)
+    drift_guard(moving, cycle(view(state=(0.0, 0.0, 3.0, 0.0, 0.5, 0.0, 0.0)), gusty, cfg=cfg, **near))
+    assert (moving.v, moving.w) == (0.5, 0.0)                      # at speed it can steer: DWA's choice stands
+    outside = Command(0.0, W_MAX, 0.0)
+    drift_guard(outside, cycle(view(), gusty, cfg=cfg, **{**near, "obstacles": [[-1.0, 0.0, 3.0]]}))
+    assert (outside.v, outside.w) == (0.0, W_MAX)                  # 0.6 m >= 0.5 m: DWA's choice stands
+    calm = Command(0.0, W_MAX, 0.0)
+    drift_guard(calm, cycle(view(), _UAVMemory(), cfg=cfg, **near))    # still air: no gust standoff
+    assert (calm.v, calm.w) == (0.0, W_MAX)

@@ -166,6 +166,13 @@ class ExpertConfig(Config):
                        (``controller.route_cost``): with the E11 cost on the change of the turn rate the leader
                        turned at once onto a route only as long as one straight on, and in the unknown
                        ``classic-2d`` "extended" maze that route led into a pocket seen closed only on arrival [X]
+    guard_gust_time    ``rules.drift_guard``'s clearance (``guard_clearance``) grows by ``guard_gust_time`` (s) x the RMS
+                       drift (``rules.gust_speed``): gust bursts of 2-3 times the RMS drift carried UAVs braking
+                       0.5-1 m from a tree or wall into it before a 20 deg/s turn could point them away [X]
+    guard_hover_speed  a UAV slower than this, within ``guard_gust_time`` x the RMS drift of an obstacle point beside
+                       it, flies away from it (``rules.drift_guard``) even when DWA has admissible samples: DWA
+                       chose to turn in place at v = 0, and the gusts carried the stopped UAV into the obstacle
+                       (0 switches it off) [X]
     dwa                the IDWA of spec (c) with the approach speed profile, r_goal 0.1 m, ``dist_cap`` 0.5 m and
                        E11's rotation cost on the change of the turn rate (``rotation_mode="delta"``): the cost on
                        the turn rate itself kept a leader in open space from turning toward a goal off its nose [X]
@@ -249,6 +256,8 @@ class ExpertConfig(Config):
     separation_margin: float = 0.3
     guard_clearance: float = 0.4
     guard_speed: float = 0.3
+    guard_gust_time: float = 3.0
+    guard_hover_speed: float = 0.1
     park_turn: bool = True
     park_heading: str = "followers"
     lateral_emergency_to_dwa: bool = True
@@ -271,7 +280,7 @@ class ExpertConfig(Config):
                                             "gap_depth", "gap_margin", "k_gap", "gap_speed", "leader_stopped_speed",
                                             "hold_radius", "hold_release", "k_hold", "separation_margin",
                                             "hold_drift_time", "hold_search", "glide_slope", "wind_margin", "vane_wind",
-                                            "approach_radius", "guard_clearance", "guard_speed", "path_margin",
+                                            "approach_radius", "guard_clearance", "guard_speed", "guard_gust_time", "guard_hover_speed", "path_margin",
                                             "margin_detour")},
         **{name: in_range(0.0, lo_open=True) for name in ("wind_tau", "gust_tau")},
         "leader_speed_cap": in_range(0.0, 1.0, lo_open=True),

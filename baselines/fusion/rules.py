@@ -132,21 +132,29 @@ def drift_guard(cmd: Command, c: Cycle) -> None:
     hover, which the wind pushes on into the obstacle, but turns its nose away from that point and flies
     off at ``guard_speed`` plus the estimated wind toward the point (``mem.wind``), times the cosine of its
     bearing error (0 beyond 90 degrees). A point more above or
-    below than beside is the emergency escape's case (g5)."""
-    if c.dwa.admissible or len(c.obstacles) == 0 or c.cfg.guard_clearance <= 0.0:
-        return
-    view = c.view
+    below than beside is the emergency escape's case (g5).
+    [X] ``guard_gust_time``, ``guard_hover_speed``: in gusts the guard's clearance grows by ``guard_gust_time`` x the
+    RMS drift (``gust_speed``); a UAV slower than ``guard_hover_speed`` within that gust standoff alone is guarded
+    even when DWA has admissible samples (a UAV DWA turns in place at v = 0 cannot dodge the next gust)."""
+    cfg, view = c.cfg, c.view
     s, lim = view.state, view.limits
+    standoff = cfg.guard_gust_time * gust_speed(c.mem)
+    if not c.dwa.admissible:
+        reach = cfg.guard_clearance + standoff
+    else:                                       # DWA found a way: only a hovering UAV within the gust standoff
+        reach = standoff if s[V] < cfg.guard_hover_speed else 0.0
+    if len(c.obstacles) == 0 or reach <= 0.0:
+        return
     gaps = np.linalg.norm(c.obstacles - s[:3], axis=1) - c.radii
     m = int(np.argmin(gaps))
-    if gaps[m] - lim.r_uav >= c.cfg.guard_clearance:
+    if gaps[m] - lim.r_uav >= reach:
         return
     away = s[:2] - c.obstacles[m, :2]
     if math.hypot(away[0], away[1]) <= abs(s[2] - c.obstacles[m, 2]):
         return
     err = bearing_error(s, away)
     toward = -float(c.mem.wind @ away) / math.hypot(away[0], away[1])      # wind component toward the point
-    speed = min(lim.v_max, c.cfg.guard_speed + max(0.0, toward))
+    speed = min(lim.v_max, cfg.guard_speed + max(0.0, toward))
     cmd.v, cmd.w = speed * max(0.0, math.cos(err)), turn_toward(s, away, lim.w_max)
 
 
