@@ -77,7 +77,8 @@ def ray_key_bound(ox, oy, oz, ex, ey, ez, inv_res):
 @numba.njit(cache=True, inline="always")
 def ray_setup(ox, oy, oz, ex, ey, ez, kx, ky, kz, res):
     """``computeRayKeys``' set-up for the segment from (ox, oy, oz) (in voxel (kx, ky, kz)) to (ex, ey, ez):
-    (sx, sy, sz, tx, ty, tz, ddx, ddy, ddz, length) for ``ray_select`` and ``ray_step``; see ``ray_keys`` for the float32 rules."""
+    (sx, sy, sz, tx, ty, tz, ddx, ddy, ddz, length) for ``ray_select`` and ``ray_step``; see ``ray_keys`` for the
+    float32 rules."""
     dx = np.float32(ex) - np.float32(ox)
     dy = np.float32(ey) - np.float32(oy)
     dz = np.float32(ez) - np.float32(oz)

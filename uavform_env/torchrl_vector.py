@@ -8,10 +8,11 @@
 The agents form one group, ``"agents"`` (parameter sharing: a policy maps ``("agents", "observation")``
 of shape (n_copies, n_agents, obs_dim) to ``("agents", "action")``); ``("agents", "reward")`` is per
 agent, ``done`` / ``terminated`` / ``truncated`` are per copy, since the agents of a copy end their episode
-together. The env's per-agent infos (``FormationEnv.INFO_KEYS``: clearance, formation error, crash cause,
+together. The env's per-agent infos (``uavform_env.env.INFO_KEYS``: clearance, formation error, crash cause,
 end reason, ...) are ``("agents", "info", key)`` of shape (n_copies, n_agents, 1), after every reset and step
-(``TimeLimit.truncated`` is the copy's ``truncated``). Ended copies are reset by TorchRL (``"_reset"``, e.g. in ``rollout`` and collectors), each on
-the next seed of its stream (see ``uavform_env.vector``). Needs ``torchrl`` (the ``interop`` extra).
+(``TimeLimit.truncated`` is the copy's ``truncated``). Ended copies are reset by TorchRL (``"_reset"``, e.g. in
+``rollout`` and collectors), each on the next seed of its stream (see ``uavform_env.vector``). Needs ``torchrl``
+(the ``interop`` extra).
 """
 
 from __future__ import annotations

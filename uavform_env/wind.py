@@ -21,7 +21,8 @@ import math
 
 import numpy as np
 
-GUST_MODES = 64  # Fourier modes per field: within 10 m one episode's correlation is within about 0.02 of exp(-d^2 / 2L^2)
+# Fourier modes per field: within 10 m one episode's correlation is within about 0.02 of exp(-d^2 / 2L^2)
+GUST_MODES = 64
 
 
 class GustField:

@@ -166,8 +166,8 @@ class ExpertConfig(Config):
                        (``controller.route_cost``): with the E11 cost on the change of the turn rate the leader
                        turned at once onto a route only as long as one straight on, and in the unknown
                        ``classic-2d`` "extended" maze that route led into a pocket seen closed only on arrival [X]
-    guard_gust_time    ``rules.drift_guard``'s clearance (``guard_clearance``) grows by ``guard_gust_time`` (s) x the RMS
-                       drift (``rules.gust_speed``): gust bursts of 2-3 times the RMS drift carried UAVs braking
+    guard_gust_time    ``rules.drift_guard``'s clearance (``guard_clearance``) grows by ``guard_gust_time`` (s) x
+                       the RMS drift (``rules.gust_speed``): gust bursts of 2-3 times the RMS drift carried UAVs braking
                        0.5-1 m from a tree or wall into it before a 20 deg/s turn could point them away [X]
     guard_hover_speed  a UAV slower than this, within ``guard_gust_time`` x the RMS drift of an obstacle point beside
                        it, flies away from it (``rules.drift_guard``) even when DWA has admissible samples: DWA
@@ -264,7 +264,8 @@ class ExpertConfig(Config):
 
     BOUNDS: ClassVar[dict] = {
         "dwa": instance_of(DWAConfig), "vfh": instance_of(VFHConfig), "astar": instance_of(AStarConfig),
-        **{name: boolean for name in ("use_vfh", "neighbour_prediction", "shape_switching", "column_at_goal", "climb_target_limit", "gap_hold", "slot_brake",
+        **{name: boolean for name in ("use_vfh", "neighbour_prediction", "shape_switching", "column_at_goal",
+                                      "climb_target_limit", "gap_hold", "slot_brake",
                                       "park_turn", "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap",
                                       "rejoin_hidden", "final_approach_free", "wind_drift", "dock_approach",
                                       "explore_unknown", "route_turn_cost")},
@@ -280,7 +281,8 @@ class ExpertConfig(Config):
                                             "gap_depth", "gap_margin", "k_gap", "gap_speed", "leader_stopped_speed",
                                             "hold_radius", "hold_release", "k_hold", "separation_margin",
                                             "hold_drift_time", "hold_search", "glide_slope", "wind_margin", "vane_wind",
-                                            "approach_radius", "guard_clearance", "guard_speed", "guard_gust_time", "guard_hover_speed", "path_margin",
+                                            "approach_radius", "guard_clearance", "guard_speed", "guard_gust_time",
+                                            "guard_hover_speed", "path_margin",
                                             "margin_detour")},
         **{name: in_range(0.0, lo_open=True) for name in ("wind_tau", "gust_tau")},
         "leader_speed_cap": in_range(0.0, 1.0, lo_open=True),

@@ -312,7 +312,8 @@ class FusionExpert(OnboardPolicy):
     def _dwa(self, view, mem: _UAVMemory, cfg: ExpertConfig, target: _Target, vertical: _Vertical, local: _Local):
         """(command, DWA result, current clearance, DWA's obstacle points and radii, whether on the final approach):
         DWA toward the heading goal at the vertical decision's climb
-        rate, with the world's bounds as walls and the estimated wind carrying the rollouts (``wind_drift``); if nothing is admissible while climbing, holding altitude is tried."""
+        rate, with the world's bounds as walls and the estimated wind carrying the rollouts (``wind_drift``); if
+        nothing is admissible while climbing, holding altitude is tried."""
         lim = view.limits
         s = view.state
         pos = s[:3]

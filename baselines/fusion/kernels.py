@@ -114,8 +114,8 @@ def segment_clear(centres, a, b, clearance):
 
 @numba.njit(cache=True)
 def gap_altitude_kernel(leaves, origin, res, pos, u, ts, z_pref, span, h_b, z_min, z_max, margin):
-    """The known-gap altitude on the leaves (a ``MapArrays``): the columns at ``pos + ts * u``, the first blocking the band around
-    ``z_pref``, and the runs known free through it and the next ``span - 1`` columns; NaN if none."""
+    """The known-gap altitude on the leaves (a ``MapArrays``): the columns at ``pos + ts * u``, the first blocking the
+    band around ``z_pref``, and the runs known free through it and the next ``span - 1`` columns; NaN if none."""
     nx, ny, nz = leaves.shape[0], leaves.shape[1], leaves.shape[2]
     cols = np.empty((ts.size, 2), np.int64)
     k_cols = 0

@@ -205,7 +205,8 @@ def emergency_escape(cmd: Command, c: Cycle) -> None:
         cmd.vz = 0.0                    # the escape would fly into a neighbour (above or below)
 
 
-RULES = (braking_fallback, dock_turn, dock_approach, reverse_turn, gap_turn, drift_guard, vertical_separation, emergency_escape)
+RULES = (braking_fallback, dock_turn, dock_approach, reverse_turn, gap_turn, drift_guard, vertical_separation,
+         emergency_escape)
 """The rules after DWA, in the order they act on the command (later ones override earlier ones)."""
 
 
