@@ -112,6 +112,7 @@ class FusionExpert(OnboardPolicy):
                 raise ValueError(f"{name}: expected a callable planner, got {type(planner).__name__}")
         self.dwa = dwa
         self.vfh = vfh if vfh is not None else VFHPlanner()
+        self._free_approach = (None, None)          # (DWA config, its copy with beta = 0) of the last final approach
 
     def reset(self, env, seed: int | None = None) -> None:
         super().reset(env, seed)
@@ -322,17 +323,19 @@ class FusionExpert(OnboardPolicy):
         dwa_cfg = cfg.dwa
         if cfg.final_approach_free and self._final_approach(view, target.goal, obstacles, radius, cfg,
                                                             cfg.dock_radius):
-            dwa_cfg = replace(dwa_cfg, beta=0.0)
+            dwa_cfg = self._without_clearance_weight(dwa_cfg)
         docking = view.is_leader and self._final_approach(view, target.goal, obstacles, radius, cfg,
                                                           cfg.approach_radius)
         fence = geofence_points(pos, local.reach, view.bounds_lo, view.bounds_hi, cfg.geofence_spacing)
-        radii = np.zeros(len(obstacles) + len(fence))                      # the fence points have radius 0
         # the wind margin, never more than half the clearance the UAV has: a UAV the gusts carried inside it can
         # still hold or leave (every sample would otherwise be inadmissible, and it would brake where it is)
-        radii[:len(obstacles)] = radius + min(cfg.wind_margin * gust_speed(mem), 0.5 * max(0.0, clearance_now))
+        radii = np.full(len(obstacles), radius + min(cfg.wind_margin * gust_speed(mem), 0.5 * max(0.0, clearance_now)))
         if len(fence):
             obstacles = np.concatenate([obstacles, fence])
-        alive_pos, alive_vel = local.movers_pos[view.neighbour_alive], local.movers_vel[view.neighbour_alive]
+            radii = np.concatenate([radii, np.zeros(len(fence))])          # the fence points have radius 0
+        alive = view.neighbour_alive
+        alive_pos, alive_vel = (local.movers_pos, local.movers_vel) if alive.all() else \
+            (local.movers_pos[alive], local.movers_vel[alive])
         still = mem.wind[0] == 0.0 and mem.wind[1] == 0.0
         drift = mem.wind * drift_persistence(lim, dwa_cfg.T_p) if cfg.wind_drift and not still else None
 
@@ -352,6 +355,13 @@ class FusionExpert(OnboardPolicy):
         return Command(res.v, res.w, vz), res, clearance_now, obstacles, radii, docking
 
     # ------------------------------------------------------------------ helpers of the stages
+    def _without_clearance_weight(self, dwa_cfg):
+        """``dwa_cfg`` with beta = 0 (``final_approach_free``), made once per configuration, not every cycle."""
+        last = self._free_approach
+        if last[0] is not dwa_cfg:
+            last = self._free_approach = (dwa_cfg, replace(dwa_cfg, beta=0.0))
+        return last[1]
+
     @staticmethod
     def _final_approach(view, goal, obstacles, radius: float, cfg: ExpertConfig, within: float) -> bool:
         """Whether the UAV closes on a fixed target (the leader on its goal, a follower on a parked slot) within
@@ -522,12 +532,13 @@ class FusionExpert(OnboardPolicy):
         key = (lead.tobytes(), cfg.dwa.T_p)              # every follower predicts the same broadcast: once a step
         if self._leader_prediction[0] != key:
             pred_xy, pred_psi = _predict_unicycle(lead, cfg.dwa.T_p, lim.dt)
-            columns = _column_offsets(view.offsets, view.config.formation.spacing)
-            self._leader_prediction = key, (
-                pred_xy, (_rotated(pred_psi, view.offsets), _rotated(lead[PSI], view.offsets)),
-                (_rotated(pred_psi, columns), _rotated(lead[PSI], columns)))
-        pred_xy, formation, single_file = self._leader_prediction[1]   # every UAV's slot offset, rotated
-        turned_pred, turned_now = single_file if column else formation
+            self._leader_prediction = key, {"xy": pred_xy, "psi": pred_psi}
+        pred = self._leader_prediction[1]
+        kind = "column" if column else "formation"
+        if kind not in pred:                            # every UAV's slot offset, rotated (once a step)
+            offsets = _column_offsets(view.offsets, view.config.formation.spacing) if column else view.offsets
+            pred[kind] = _rotated(pred["psi"], offsets), _rotated(lead[PSI], offsets)
+        pred_xy, (turned_pred, turned_now) = pred["xy"], pred[kind]
         row = view.index
         goal = pred_xy + turned_pred[row]
         heading_l = np.array([math.cos(lead[PSI]), math.sin(lead[PSI])])
@@ -700,7 +711,7 @@ def _gap_altitude(view, target_xy, z_pref: float, cfg: ExpertConfig) -> float | 
     ts = np.arange(res, min(cfg.gap_lookahead, dist + res), res)
     if ts.size == 0:
         return None
-    best = gap_altitude_kernel(occ.arrays(), occ.origin, res, pos, d / dist, ts, z_pref,
+    best = gap_altitude_kernel(tuple(occ.arrays()), occ.origin, res, pos, d / dist, ts, z_pref,
                                max(1, int(round(cfg.gap_depth / res))), lim.r_uav + lim.r_safe, lim.z_min, lim.z_max,
                                cfg.gap_margin)
     return None if math.isnan(best) else best
