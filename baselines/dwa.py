@@ -676,9 +676,10 @@ class _Params(NamedTuple):
 def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, obstacles, radii, movers_pos, movers_vel, params, exact_clearance):
     """Window sampling, rollout, clearance, admissibility and the eq. 12 score of every sample.
 
-    The window is [v_lo, v_hi] x [w_lo, w_hi]; ``params`` is a ``_Params``. ``exact_clearance`` evaluates
-    inadmissible samples to the end instead of stopping early. (One named tuple: numba types each one
-    passed in Python, about 2.5 us a call.)
+    The window is [v_lo, v_hi] x [w_lo, w_hi]; ``params`` holds the fields of a ``_Params``, in order.
+    ``exact_clearance`` evaluates inadmissible samples to the end instead of stopping early. (One tuple:
+    numba types each argument passed in Python, about 2.5 us a call; a plain tuple, since a new named
+    tuple every call takes numba's slow typing path, about 10 us more.)
     """
     (v_res, w_res, vz, dt, n_steps, r_uav, a_max, v_max, w_max, D_cap, dist_cap, R_uu, goal_x, goal_y, la_x, la_y,
      heading_from_current, lam, progress_reach, vel_target, rot_ref, alpha, kappa, alpha_per_candidate, beta, gamma,
@@ -892,6 +893,7 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
                      float(cfg.kappa), per_candidate, float(cfg.beta), float(cfg.gamma),
                      float(_rotation_weight(cfg, clearance_now, prev_alignment)), cfg.norm == "minmax",
                      drift_x, drift_y)
+    params = tuple(params)             # the kernel's fields in _Params' order (see _plan_kernel for why plain)
 
     def run(v_lo_, v_hi_, w_lo_, w_hi_, exact_clearance):
         return _plan_kernel(state, v_lo_, v_hi_, w_lo_, w_hi_, obstacles, radii, movers_pos, movers_vel, params,
@@ -912,9 +914,10 @@ def geofence_points(pos, reach: float, lo, hi, spacing: float) -> np.ndarray:
     """Points on the world's vertical x/y bound planes within ``reach`` of ``pos``, at its altitude: the bounds
     (a crash in the env) as DWA obstacles, ``spacing`` apart."""
     pts = []
+    pos = (float(pos[0]), float(pos[1]), float(pos[2]))    # Python floats: cheaper than numpy scalars here
     for axis in (0, 1):
         other = 1 - axis
-        for bound in (lo[axis], hi[axis]):
+        for bound in (float(lo[axis]), float(hi[axis])):
             gap = abs(pos[axis] - bound)
             if gap >= reach:
                 continue

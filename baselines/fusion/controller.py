@@ -112,6 +112,7 @@ class FusionExpert(OnboardPolicy):
                 raise ValueError(f"{name}: expected a callable planner, got {type(planner).__name__}")
         self.dwa = dwa
         self.vfh = vfh if vfh is not None else VFHPlanner()
+        self._free_approach = (None, None)          # (DWA config, its copy with beta = 0) of the last final approach
 
     def reset(self, env, seed: int | None = None) -> None:
         super().reset(env, seed)
@@ -322,17 +323,19 @@ class FusionExpert(OnboardPolicy):
         dwa_cfg = cfg.dwa
         if cfg.final_approach_free and self._final_approach(view, target.goal, obstacles, radius, cfg,
                                                             cfg.dock_radius):
-            dwa_cfg = replace(dwa_cfg, beta=0.0)
+            dwa_cfg = self._without_clearance_weight(dwa_cfg)
         docking = view.is_leader and self._final_approach(view, target.goal, obstacles, radius, cfg,
                                                           cfg.approach_radius)
         fence = geofence_points(pos, local.reach, view.bounds_lo, view.bounds_hi, cfg.geofence_spacing)
-        radii = np.zeros(len(obstacles) + len(fence))                      # the fence points have radius 0
         # the wind margin, never more than half the clearance the UAV has: a UAV the gusts carried inside it can
         # still hold or leave (every sample would otherwise be inadmissible, and it would brake where it is)
-        radii[:len(obstacles)] = radius + min(cfg.wind_margin * gust_speed(mem), 0.5 * max(0.0, clearance_now))
+        radii = np.full(len(obstacles), radius + min(cfg.wind_margin * gust_speed(mem), 0.5 * max(0.0, clearance_now)))
         if len(fence):
             obstacles = np.concatenate([obstacles, fence])
-        alive_pos, alive_vel = local.movers_pos[view.neighbour_alive], local.movers_vel[view.neighbour_alive]
+            radii = np.concatenate([radii, np.zeros(len(fence))])          # the fence points have radius 0
+        alive = view.neighbour_alive
+        alive_pos, alive_vel = (local.movers_pos, local.movers_vel) if alive.all() else \
+            (local.movers_pos[alive], local.movers_vel[alive])
         still = mem.wind[0] == 0.0 and mem.wind[1] == 0.0
         drift = mem.wind * drift_persistence(lim, dwa_cfg.T_p) if cfg.wind_drift and not still else None
 
@@ -352,6 +355,13 @@ class FusionExpert(OnboardPolicy):
         return Command(res.v, res.w, vz), res, clearance_now, obstacles, radii, docking
 
     # ------------------------------------------------------------------ helpers of the stages
+    def _without_clearance_weight(self, dwa_cfg):
+        """``dwa_cfg`` with beta = 0 (``final_approach_free``), made once per configuration, not every cycle."""
+        last = self._free_approach
+        if last[0] is not dwa_cfg:
+            last = self._free_approach = (dwa_cfg, replace(dwa_cfg, beta=0.0))
+        return last[1]
+
     @staticmethod
     def _final_approach(view, goal, obstacles, radius: float, cfg: ExpertConfig, within: float) -> bool:
         """Whether the UAV closes on a fixed target (the leader on its goal, a follower on a parked slot) within
@@ -411,7 +421,7 @@ class FusionExpert(OnboardPolicy):
                 trigger = replan_trigger(mem.path, pos_xy, inflated, self.raster, max(0.0, t - mem.last_plan_time),
                                          True, cfg.astar)
                 if trigger is not None:
-                    self._plan(view, mem, t, goal_xy, blocked)
+                    self._plan(view, mem, t, goal_xy, blocked, inflated)
                 if view.is_leader and cfg.astar.heading_target == "visible_goal":
                     box = self._raster_box()
                     sight = GlobalPath(np.array([np.clip(pos_xy, *box), np.clip(goal_xy, *box)]))
@@ -420,7 +430,9 @@ class FusionExpert(OnboardPolicy):
             return None
         return mem.path.lookahead(pos_xy, cfg.astar.lookahead)
 
-    def _plan(self, view, mem: _UAVMemory, t: float, goal_xy, blocked=None):
+    def _plan(self, view, mem: _UAVMemory, t: float, goal_xy, blocked=None, inflated=None):
+        """A* from the UAV to ``goal_xy`` on ``blocked`` (its raster; None: made here); ``inflated``: ``blocked``
+        already inflated by r_uav + r_safe, if the caller has it (``route_turn_cost`` reuses it)."""
         cfg = self.config
         lim = view.limits
         if blocked is None:
@@ -434,16 +446,17 @@ class FusionExpert(OnboardPolicy):
             path = self._search(self._blocked_raster(view, cfg, seen=False), start, goal, lim, margin,
                                 cfg.margin_detour)                                         # the unseen ways
         if path is not None and view.is_leader and cfg.route_turn_cost:
-            path = self._heading_route(view, blocked, goal, path, margin)
+            path = self._heading_route(view, blocked, goal, path, margin, inflated)
         mem.path, mem.path_found, mem.plan_goal = path, path is not None, np.array(goal_xy, dtype=np.float64)
         mem.last_plan_time = t
         mem.replans += 1
         return path
 
-    def _heading_route(self, view, blocked, goal, path: GlobalPath, margin: float) -> GlobalPath:
+    def _heading_route(self, view, blocked, goal, path: GlobalPath, margin: float, inflated=None) -> GlobalPath:
         """``route_turn_cost``: ``path``, or the route that first flies the lookahead L_a straight on along the heading
         (when that leg is free) and then A*'s path from there, whichever costs less by ``route_cost``; not searched when
-        ``path`` leaves within a raster cell of the nose at L_a (the two are the same route there)."""
+        ``path`` leaves within a raster cell of the nose at L_a (the two are the same route there). ``inflated``:
+        ``blocked`` inflated by r_uav + r_safe (None: inflated here, when the leg is tested)."""
         cfg, lim = self.config, view.limits
         L, psi, pos = cfg.astar.lookahead, float(view.state[PSI]), view.state[:2]
         metres_per_rad = cfg.leader_speed_cap * lim.v_max / lim.w_max
@@ -455,7 +468,9 @@ class FusionExpert(OnboardPolicy):
         if np.any(ahead < lo) or np.any(ahead > hi):
             return path
         leg = GlobalPath(np.array([pos, ahead]))
-        if leg.corridor_blocked(inflate(blocked, lim.r_uav + lim.r_safe, self.raster.res), self.raster):
+        if inflated is None:
+            inflated = inflate(blocked, lim.r_uav + lim.r_safe, self.raster.res)
+        if leg.corridor_blocked(inflated, self.raster):
             return path
         onward = self._search(blocked, ahead, goal, lim, margin, cfg.margin_detour)
         if onward is None:
@@ -509,7 +524,6 @@ class FusionExpert(OnboardPolicy):
     def _follower_target(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float, slot_hidden: bool, local: _Local):
         lim = view.limits
         lead = view.leader_state
-        offset = view.slot_offset
         column = False
         if cfg.shape_switching and (cfg.column_at_goal or not _leader_at_goal(view, cfg)):
             if _occupied_within(view, local, view.slot, lim.r_uav + lim.r_safe + view.occupancy.resolution):
@@ -518,13 +532,14 @@ class FusionExpert(OnboardPolicy):
         key = (lead.tobytes(), cfg.dwa.T_p)              # every follower predicts the same broadcast: once a step
         if self._leader_prediction[0] != key:
             pred_xy, pred_psi = _predict_unicycle(lead, cfg.dwa.T_p, lim.dt)
-            self._leader_prediction = key, (pred_xy, pred_psi, _rotated(pred_psi, view.offsets),
-                                            _rotated(lead[PSI], view.offsets))
-        pred_xy, pred_psi, turned_pred, turned_now = self._leader_prediction[1]   # every slot offset, rotated
-        if column:
-            offset = np.array([-view.index * view.config.formation.spacing, 0.0, offset[2]])
-            turned_pred, turned_now = _rotated(pred_psi, offset[None]), _rotated(lead[PSI], offset[None])
-        row = 0 if column else view.index
+            self._leader_prediction = key, {"xy": pred_xy, "psi": pred_psi}
+        pred = self._leader_prediction[1]
+        kind = "column" if column else "formation"
+        if kind not in pred:                            # every UAV's slot offset, rotated (once a step)
+            offsets = _column_offsets(view.offsets, view.config.formation.spacing) if column else view.offsets
+            pred[kind] = _rotated(pred["psi"], offsets), _rotated(lead[PSI], offsets)
+        pred_xy, (turned_pred, turned_now) = pred["xy"], pred[kind]
+        row = view.index
         goal = pred_xy + turned_pred[row]
         heading_l = np.array([math.cos(lead[PSI]), math.sin(lead[PSI])])
         lead_moving = not leader_parked(view, cfg)
@@ -696,7 +711,7 @@ def _gap_altitude(view, target_xy, z_pref: float, cfg: ExpertConfig) -> float | 
     ts = np.arange(res, min(cfg.gap_lookahead, dist + res), res)
     if ts.size == 0:
         return None
-    best = gap_altitude_kernel(occ.arrays(), occ.origin, res, pos, d / dist, ts, z_pref,
+    best = gap_altitude_kernel(tuple(occ.arrays()), occ.origin, res, pos, d / dist, ts, z_pref,
                                max(1, int(round(cfg.gap_depth / res))), lim.r_uav + lim.r_safe, lim.z_min, lim.z_max,
                                cfg.gap_margin)
     return None if math.isnan(best) else best
@@ -710,6 +725,15 @@ def _rotated(psi: float, offsets: np.ndarray) -> np.ndarray:
     """Body-frame ``offsets`` (K, 3) turned by the heading ``psi`` into world-frame x, y (K, 2): the slots of
     ``slot_positions`` about the origin, to which the caller adds the (predicted) leader position."""
     return slot_positions(_ORIGIN, psi, offsets, 0.0)[:, :2]
+
+
+def _column_offsets(offsets: np.ndarray, spacing: float) -> np.ndarray:
+    """(g7) ``shape_switching``: the slot offsets (K, 3) of the column (single file) behind the leader, ``spacing``
+    apart, each UAV at its own formation slot's height offset."""
+    column = np.zeros_like(offsets)
+    column[:, 0] = -np.arange(offsets.shape[0]) * spacing
+    column[:, 2] = offsets[:, 2]
+    return column
 
 
 def _follower_errors(view) -> np.ndarray:
