@@ -269,7 +269,7 @@ class ExpertConfig(Config):
     park_turn: bool = True
     park_heading: str = "followers"
     lateral_emergency_to_dwa: bool = True
-    # the leader's routes through an unknown maze (classic-2d "extended", issue 13)
+    # the passable raster: free evidence of a way (s8maze: classic-2d "extended" under noisy, issue 13)
     way_misses: int = 4
 
     BOUNDS: ClassVar[dict] = {
