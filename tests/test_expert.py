@@ -416,16 +416,18 @@ def test_standard_dwa_does_not_pass_the_wall_gap():
 # ----------------------------------------------------------------------------- own-map raster and geometry
 
 
-def column_blocked(occupied_z, free_z) -> bool:
+def column_blocked(occupied_z, free_z, scans: int = 1, misses: int = 0) -> bool:
     """Whether the A* raster blocks one map column whose voxels at ``occupied_z`` were hit and at ``free_z``
-    were crossed by a ray (every other voxel unknown); altitude band 0.5-10 m, way height 1.2 m."""
+    were crossed by a ray in ``scans`` scans (every other voxel unknown); altitude band 0.5-10 m, way height 1.2 m,
+    a way's free voxel crossed at least ``misses`` times (0: once)."""
     occ = OccupancyMap((0.0, 0.0, 0.0), (3, 1, 60), 0.2)
     for z in occupied_z:
         occ.integrate((0.1, 0.1, z), [[0.5, 0.1, z]], np.array([True]))
-    for z in free_z:
-        occ.integrate((0.1, 0.1, z), [[0.7, 0.1, z]], np.array([False]))
+    for _ in range(scans):
+        for z in free_z:
+            occ.integrate((0.1, 0.1, z), [[0.7, 0.1, z]], np.array([False]))
     centres, _ = occ.occupied_in_sphere((0.3, 0.1, 6.0), 10.0)
-    columns = columns_without_gap(occ, centres, 0.5, 10.0, 1.2)
+    columns = columns_without_gap(occ, centres, 0.5, 10.0, 1.2, misses=misses)
     assert len(columns) <= 1 and (len(columns) == 0 or np.allclose(columns[0], (0.5, 0.1)))
     return len(columns) == 1
 
@@ -440,7 +442,18 @@ def test_raster_needs_a_seen_way_through_a_column():
     assert not column_blocked([], [])                              # nothing occupied: no column at all
 
 
-def columns_reference(occ, centres, z_min, z_max, gap):
+def test_raster_way_needs_free_evidence_of_way_misses_scans():
+    """``ExpertConfig.way_misses``: a lost ray of ``noisy`` reads as free space once, through the obstacle it
+    would have hit; a way through a column needs a voxel crossed in that many scans (3 miss updates)."""
+    wall = np.arange(1.1, 4.6, 0.2)
+    for scans, blocked in ((1, True), (2, True), (3, False), (9, False)):   # 9: clamped at l_min, still a way
+        assert column_blocked(wall, [6.1], scans, misses=3) is blocked
+    assert not column_blocked(wall, [6.1], 1, misses=0)           # 0: any known non-occupied voxel (one ray)
+    assert column_blocked(wall, [6.1], 4, misses=6)               # 6 misses lie beyond the clamp at l_min, which
+    assert not column_blocked(wall, [6.1], 5, misses=6)           # 5 reach: the clamp is enough
+
+
+def columns_reference(occ, centres, z_min, z_max, gap, misses=0):
     """The same rule vectorised over whole columns (runs labelled by a cumulative sum), as a cross-check."""
     res, origin = occ.resolution, occ.origin
     inside = (centres[:, 2] >= z_min - res) & (centres[:, 2] <= z_max + res)
@@ -453,13 +466,15 @@ def columns_reference(occ, centres, z_min, z_max, gap):
     n_z = cols.shape[1]
     run = np.cumsum(occupied, axis=1) + np.arange(len(cols))[:, None] * (n_z + 1)
     length = np.bincount(run[~occupied], minlength=len(cols) * (n_z + 1))
-    seen = np.bincount(run[~occupied], weights=(cols < l_occ)[~occupied], minlength=len(cols) * (n_z + 1))
+    l_way = max((misses - 0.5) * occ.cfg.logodds(occ.cfg.p_miss), occ.cfg.logodds(occ.cfg.p_min)) if misses else np.inf
+    free = (cols < l_occ) & (cols <= np.float32(l_way))
+    seen = np.bincount(run[~occupied], weights=free[~occupied], minlength=len(cols) * (n_z + 1))
     blocked = ~((length * res >= gap - 1e-9) & (seen > 0)).reshape(len(cols), n_z + 1).any(axis=1)
     return origin[:2] + (ij[blocked] + 0.5) * res
 
 
-@pytest.mark.parametrize("seed", range(5))
-def test_raster_columns_match_a_vectorised_reference(seed):
+@pytest.mark.parametrize("seed, misses", [(0, 0), (1, 0), (2, 3), (3, 0), (4, 2)])
+def test_raster_columns_match_a_vectorised_reference(seed, misses):
     rng = np.random.default_rng(seed)
     occ = OccupancyMap((0.0, 0.0, 0.0), (12, 10, 40), 0.2)
     for _ in range(60):                                           # random rays: hits, and the free space they cross
@@ -468,8 +483,8 @@ def test_raster_columns_match_a_vectorised_reference(seed):
         occ.integrate(start, ends, rng.random(20) < 0.8)
     centres, _ = occ.occupied_in_sphere((1.2, 1.0, 4.0), 10.0)
     z_min, z_max, gap = rng.uniform(0.0, 2.0), rng.uniform(5.0, 8.5), rng.uniform(0.4, 2.5)
-    got = columns_without_gap(occ, centres, z_min, z_max, gap)
-    expected = columns_reference(occ, centres, z_min, z_max, gap)
+    got = columns_without_gap(occ, centres, z_min, z_max, gap, misses=misses)
+    expected = columns_reference(occ, centres, z_min, z_max, gap, misses)
     assert 0 < len(expected) < len(np.unique(np.floor(centres[:, :2] / 0.2), axis=0))   # both outcomes occur
     assert np.array_equal(got[np.lexsort(got.T[::-1])], expected)
 

@@ -166,6 +166,14 @@ class ExpertConfig(Config):
                        (``controller.route_cost``): with the E11 cost on the change of the turn rate the leader
                        turned at once onto a route only as long as one straight on, and in the unknown
                        ``classic-2d`` "extended" maze that route led into a pocket seen closed only on arrival [X]
+    way_misses         the ``passable`` raster's way through a map column (a run of non-occupied voxels tall enough
+                       for the UAV) needs a voxel holding ``way_misses`` of the map's miss updates net of its hits
+                       (crossed by rays in that many scans, or in as many as the UAV has made; or at the clamp p_min),
+                       not one ray's (0: any known non-occupied voxel, as before): under ``noisy`` a lost ray reads as
+                       free space once, through the obstacle it would have hit, and its miss with the unseen voxels
+                       between the sensor's elevation rows opened ways through the columns of ``classic-2d``; the
+                       leader's route ran through discs, before which it climbed and turned until time-out
+                       (``kernels.columns_without_gap``) [X]
     guard_gust_time    ``rules.drift_guard``'s clearance (``guard_clearance``) grows by ``guard_gust_time`` (s) x
                        the RMS drift (``rules.gust_speed``): gust bursts of 2-3 times the RMS drift carried UAVs braking
                        0.5-1 m from a tree or wall into it before a 20 deg/s turn could point them away [X]
@@ -261,6 +269,8 @@ class ExpertConfig(Config):
     park_turn: bool = True
     park_heading: str = "followers"
     lateral_emergency_to_dwa: bool = True
+    # the passable raster: free evidence of a way (s8maze: classic-2d "extended" under noisy, issue 13)
+    way_misses: int = 4
 
     BOUNDS: ClassVar[dict] = {
         "dwa": instance_of(DWAConfig), "vfh": instance_of(VFHConfig), "astar": instance_of(AStarConfig),
@@ -275,6 +285,7 @@ class ExpertConfig(Config):
         "dwa_map_level": integer(0, 4),
         "debounce": integer(1, 100),
         "trail_window": integer(1),
+        "way_misses": integer(0, 100),
         **{name: in_range(0.0) for name in ("replan_check_period", "k_f", "k_h", "k_z", "T_stuck", "climb_lookahead",
                                             "column_hold", "vfh_neighbour_radius", "rejoin_distance", "dock_radius",
                                             "trail_spacing", "arrive_radius", "stuck_window", "gap_lookahead",

@@ -499,7 +499,8 @@ class FusionExpert(OnboardPolicy):
 
     def _blocked_raster(self, view, cfg: ExpertConfig, seen: bool = True) -> np.ndarray:
         """A UAV's 2D raster: its map's occupied voxels, the world bounds and the prior map (``astar_layer``);
-        ``seen=False``: a column with a tall enough run of unknown voxels is a way too (``explore_unknown``)."""
+        ``seen=False``: a column with a tall enough run of unknown voxels is a way too (``explore_unknown``). A way's
+        free evidence is ``way_misses`` scans, or as many as the UAV has made (step k: k + 1)."""
         lim = view.limits
         h_b = lim.r_uav + lim.r_safe
         occ_map = view.occupancy
@@ -510,7 +511,8 @@ class FusionExpert(OnboardPolicy):
         if cfg.astar_layer == "band":
             columns = centres[np.abs(centres[:, 2] - z_flight) <= h_b + res / 2, :2]
         else:
-            columns = columns_without_gap(occ_map, centres, lim.z_min, lim.z_max, 2 * h_b + res, seen)
+            misses = min(cfg.way_misses, view.step + 1)           # the scans so far can give no more evidence
+            columns = columns_without_gap(occ_map, centres, lim.z_min, lim.z_max, 2 * h_b + res, seen, misses)
         blocked = np.zeros(self.raster.shape, bool)
         blocked[0, :] = blocked[-1, :] = blocked[:, 0] = blocked[:, -1] = True    # the x/y bounds are walls (geofence)
         _mark(blocked, self.raster, columns)

@@ -12,32 +12,38 @@ from uavform_env.occupancy import MapArrays, voxel_logodds
 
 
 def columns_without_gap(occ_map, centres: np.ndarray, z_min: float, z_max: float, gap: float,
-                        seen: bool = True) -> np.ndarray:
+                        seen: bool = True, misses: int = 0) -> np.ndarray:
     """x, y of the map columns holding an occupied voxel in [z_min, z_max] but no way through there: a run
     of non-occupied voxels of height >= ``gap`` of which at least one voxel is known free (``seen=False``:
     unknown voxels alone make a way too, the optimistic raster an explorer falls back on).
 
     A run of unknown voxels alone is not a way: a wall whose top the UAV has not seen is a wall (that
     optimism sent followers along a corridor's wall into the world's corners); one ray through the
-    run (over a low wall, through a gap) is enough. Only the columns of the occupied voxels
-    ``centres`` are read, so the cost follows the obstacles, not the map.
+    run (over a low wall, through a gap) is enough. ``misses`` > 0: a known-free voxel counts only when its
+    log-odds holds ``misses`` of the map's miss updates (crossed by rays in that many scans, net of its hits), or
+    sits at the clamp l_min: a lost ray reads as free space once, through whatever it would have hit. Only the
+    columns of the occupied voxels ``centres`` are read, so the cost follows the obstacles, not the map.
     """
     res = occ_map.resolution
     origin = occ_map.origin
     k_lo = max(0, int(math.ceil((z_min - origin[2]) / res - 0.5)))
     k_hi = min(occ_map.shape[2], int(math.floor((z_max - origin[2]) / res - 0.5)) + 1)
-    l_occ = np.float32(occ_map.cfg.logodds(occ_map.cfg.p_occ))        # the map's float32 occupancy threshold
+    cfg = occ_map.cfg
+    l_occ = np.float32(cfg.logodds(cfg.p_occ))                        # the map's float32 occupancy threshold
+    # the free evidence a way needs: ``misses`` miss updates (half of one spared for float32 sums), or the clamp
+    # l_min where that is nearer; 0: any known non-occupied voxel
+    l_way = np.float32(max((misses - 0.5) * cfg.logodds(cfg.p_miss), cfg.logodds(cfg.p_min)) if misses > 0 else np.inf)
     out = np.empty((len(centres), 2))
     n = _gapless_columns_kernel(occ_map.arrays(), np.ascontiguousarray(centres, dtype=np.float64), origin, res,
-                                z_min - res, z_max + res, k_lo, k_hi, l_occ, gap, seen, out)
+                                z_min - res, z_max + res, k_lo, k_hi, l_occ, l_way, gap, seen, out)
     return out[:n]
 
 
 @numba.njit(cache=True)
-def _gapless_columns_kernel(leaves, centres, origin, res, z_lo, z_hi, k_lo, k_hi, l_occ, gap, need_seen, out):
+def _gapless_columns_kernel(leaves, centres, origin, res, z_lo, z_hi, k_lo, k_hi, l_occ, l_way, gap, need_seen, out):
     """Write into ``out`` the x, y of each column (once) of a voxel of ``centres`` within [z_lo, z_hi] whose
-    layers k_lo..k_hi-1 hold no run of non-occupied voxels >= ``gap`` (with a known-free voxel if ``need_seen``);
-    return the count."""
+    layers k_lo..k_hi-1 hold no run of non-occupied voxels >= ``gap`` (with a known-free voxel, log-odds at most
+    ``l_way``, if ``need_seen``); return the count."""
     visited = np.zeros((leaves.shape[0], leaves.shape[1]), dtype=np.bool_)
     n = 0
     for m in range(centres.shape[0]):
@@ -55,7 +61,7 @@ def _gapless_columns_kernel(leaves, centres, origin, res, z_lo, z_hi, k_lo, k_hi
                 length, seen = 0, False
                 continue
             length += 1
-            seen = seen or value < l_occ or not need_seen
+            seen = seen or value <= l_way or not need_seen     # NaN (unknown) compares False
             if seen and length * res >= gap - 1e-9:
                 way = True
                 break
