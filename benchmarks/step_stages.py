@@ -26,7 +26,7 @@ CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
 
 STAGES = (
     ("env", "_validate_actions", "actions"),
-    ("uavform_env.dynamics", "step", "dynamics"),
+    ("uavform_env.dynamics", "step_actions", "dynamics"),
     ("env", "_apply_wind", "wind"),
     ("env", "_clearance", "clearance"),
     ("uavform_env.env", "contacts", "crash checks"),

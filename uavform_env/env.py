@@ -261,8 +261,7 @@ class FormationEnv(ParallelEnv):
         cfg = self.config
         was_active = self.active.copy()
         self.broadcast = self.states.copy()
-        commands = dynamics.actions_to_commands(acts, cfg.uav)
-        dynamics.step(self.states, commands, self.active, cfg.uav)
+        dynamics.step_actions(self.states, acts, self.active, cfg.uav)
         self._apply_wind()
         self.step_count += 1
 
