@@ -7,7 +7,8 @@ env then replays them, so every UAV stays alive (a replay that loses a UAV is re
 is N x steps / time of the replay loop (``--clock``), the best of ``--repeats`` replays, resets excluded.
 MPE ``simple_spread`` (package ``mpe2``) steps pre-drawn random actions in the same run, at the same N,
 for the ratio. A further replay times each stage of ``FormationEnv.step`` by wrapping the function
-that does it; "rest" is the step's own code (crash checks, endings, the dicts) and the timers' overhead.
+that does it; "rest" is the step's own code (endings, the dicts, the code around the timed calls) and the
+timers' overhead.
 """
 
 from __future__ import annotations
