@@ -99,7 +99,8 @@ def build_observations(layout: ObservationLayout, cfg: EnvConfig, states: np.nda
     ``states`` are the true own states, ``broadcast`` the neighbours' broadcast states (one cycle
     old), ``targets`` (N, 3) each UAV's goal or slot, ``maps`` the store of the onboard maps (map i
     is UAV i's), ``neighbour_ok`` (N,) which UAVs still broadcast (a removed UAV does not). The map
-    features of all UAVs come from one numba call each.
+    features of all UAVs come from one numba call each. ``layout`` is ``ObservationLayout(cfg)``: the
+    histogram's constants come from it.
     """
     u, oc = cfg.uav, cfg.observation
     n = states.shape[0]
