@@ -7,7 +7,8 @@ env then replays them, so every UAV stays alive (a replay that loses a UAV is re
 is N x steps / time of the replay loop (``--clock``), the best of ``--repeats`` replays, resets excluded.
 MPE ``simple_spread`` (package ``mpe2``) steps pre-drawn random actions in the same run, at the same N,
 for the ratio. A further replay times each stage of ``FormationEnv.step`` by wrapping the function
-that does it; "rest" is the step's own code (crash checks, endings, the dicts) and the timers' overhead.
+that does it; "rest" is the step's own code (endings, the dicts, the code around the timed calls) and the
+timers' overhead.
 """
 
 from __future__ import annotations
@@ -26,16 +27,15 @@ CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
 
 STAGES = (
     ("env", "_validate_actions", "actions"),
-    ("uavform_env.dynamics", "step", "dynamics"),
+    ("uavform_env.dynamics", "step_actions", "dynamics"),
     ("env", "_apply_wind", "wind"),
     ("env", "_clearance", "clearance"),
-    ("env", "_separations", "separation"),
+    ("uavform_env.env", "contacts", "crash checks"),
     ("env.sensor", "scan", "ray cast"),
     ("uavform_env.env", "perturb_scan", "sensor faults"),
     ("env._map_store", "integrate", "map integrate"),
     ("env", "_true_slots", "slots"),
-    ("uavform_env.env", "formation_errors", "formation error"),
-    ("env", "_target_distances", "target distance"),
+    ("uavform_env.env", "slot_distances", "slot distances"),
     ("uavform_env.env", "compute_rewards", "rewards"),
     ("uavform_env.env", "build_observations", "observations"),
     ("env", "_infos", "infos"),

@@ -32,7 +32,7 @@ def action_rows(actions, possible_agents: list[str], live_agents: list[str], siz
     except (TypeError, ValueError):
         rows = None
     if rows is not None and rows.shape == (len(actions), size) and np.isfinite(rows).all():
-        return np.clip(rows, -1.0, 1.0, out=rows)
+        return np.minimum(np.maximum(rows, -1.0, out=rows), 1.0, out=rows)  # np.clip without its wrapper's cost
     for a, act in actions.items():
         arr = np.asarray(act, dtype=np.float64)
         if arr.shape != (size,):

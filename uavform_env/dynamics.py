@@ -50,10 +50,22 @@ def actions_to_commands(actions: np.ndarray, limits: UAVLimits) -> np.ndarray:
     """Map actions in [-1, 1]^3 linearly to (v_c, w_c, vz_c) within the limits."""
     a = np.clip(np.asarray(actions, dtype=np.float64), -1.0, 1.0)
     cmd = np.empty_like(a)
-    cmd[..., 0] = limits.v_min + 0.5 * (a[..., 0] + 1.0) * (limits.v_max - limits.v_min)
-    cmd[..., 1] = a[..., 1] * limits.w_max
-    cmd[..., 2] = a[..., 2] * limits.vz_max
+    _commands(a.reshape(-1, a.shape[-1]), limits.v_min, limits.v_max - limits.v_min, limits.w_max, limits.vz_max,
+              cmd.reshape(-1, a.shape[-1]))
     return cmd
+
+
+@numba.njit(cache=True, inline="always")
+def _command(a_v, a_w, a_vz, v_min, v_span, w_max, vz_max):
+    """The commands (v_c, w_c, vz_c) of one action in [-1, 1]^3 (``actions_to_commands``)."""
+    return v_min + 0.5 * (a_v + 1.0) * v_span, a_w * w_max, a_vz * vz_max
+
+
+@numba.njit(cache=True)
+def _commands(actions, v_min, v_span, w_max, vz_max, out):
+    for i in range(actions.shape[0]):
+        out[i, 0], out[i, 1], out[i, 2] = _command(actions[i, 0], actions[i, 1], actions[i, 2], v_min, v_span, w_max,
+                                                   vz_max)
 
 
 def commands_to_actions(commands: np.ndarray, limits: UAVLimits) -> np.ndarray:
@@ -67,24 +79,35 @@ def commands_to_actions(commands: np.ndarray, limits: UAVLimits) -> np.ndarray:
     return np.clip(a, -1.0, 1.0).astype(np.float32)
 
 
+@numba.njit(cache=True, inline="always")
+def _advance(states, i, v_c, w_c, vz_c, dt, v_min, v_max, w_max, a_max, dw_max, vz_max, az_max, z_min, z_max):
+    """Advance UAV i one step with the commands (v_c, w_c, vz_c) (see ``step``)."""
+    v0, w0, vz0 = states[i, V], states[i, W], states[i, VZ]
+    v = min(max(v_c, v0 - a_max * dt, v_min), v0 + a_max * dt, v_max)
+    w = min(max(w_c, w0 - dw_max * dt, -w_max), w0 + dw_max * dt, w_max)
+    vz = min(max(vz_c, vz0 - az_max * dt, -vz_max), vz0 + az_max * dt, vz_max)
+    x, y, z, psi = integrate(states[i, X], states[i, Y], states[i, Z], states[i, PSI], v, w, vz, dt)
+    if z < z_min or z > z_max:
+        z = min(max(z, z_min), z_max)
+        vz = 0.0
+    states[i, X], states[i, Y], states[i, Z], states[i, PSI] = x, y, z, psi
+    states[i, V], states[i, W], states[i, VZ] = v, w, vz
+
+
 @numba.njit(cache=True)
-def _step_kernel(states, commands, active, dt, v_min, v_max, w_max, a_max, dw_max, vz_max, az_max, z_min, z_max):
+def _step_kernel(states, commands, active, from_actions, dt, v_min, v_max, w_max, a_max, dw_max, vz_max, az_max, z_min,
+                 z_max):
     for i in range(states.shape[0]):
         if not active[i]:
             states[i, V] = 0.0
             states[i, W] = 0.0
             states[i, VZ] = 0.0
             continue
-        v0, w0, vz0 = states[i, V], states[i, W], states[i, VZ]
-        v = min(max(commands[i, 0], v0 - a_max * dt, v_min), v0 + a_max * dt, v_max)
-        w = min(max(commands[i, 1], w0 - dw_max * dt, -w_max), w0 + dw_max * dt, w_max)
-        vz = min(max(commands[i, 2], vz0 - az_max * dt, -vz_max), vz0 + az_max * dt, vz_max)
-        x, y, z, psi = integrate(states[i, X], states[i, Y], states[i, Z], states[i, PSI], v, w, vz, dt)
-        if z < z_min or z > z_max:
-            z = min(max(z, z_min), z_max)
-            vz = 0.0
-        states[i, X], states[i, Y], states[i, Z], states[i, PSI] = x, y, z, psi
-        states[i, V], states[i, W], states[i, VZ] = v, w, vz
+        v_c, w_c, vz_c = commands[i, 0], commands[i, 1], commands[i, 2]
+        if from_actions:  # rows of finite actions: clipped to [-1, 1] and mapped as actions_to_commands does
+            v_c, w_c, vz_c = _command(min(max(v_c, -1.0), 1.0), min(max(w_c, -1.0), 1.0), min(max(vz_c, -1.0), 1.0),
+                                      v_min, v_max - v_min, w_max, vz_max)
+        _advance(states, i, v_c, w_c, vz_c, dt, v_min, v_max, w_max, a_max, dw_max, vz_max, az_max, z_min, z_max)
 
 
 def step(states: np.ndarray, commands: np.ndarray, active: np.ndarray, limits: UAVLimits) -> None:
@@ -93,7 +116,15 @@ def step(states: np.ndarray, commands: np.ndarray, active: np.ndarray, limits: U
     Commands are first limited to the dynamic window (acceleration) and to the velocity limits,
     then integrated; the altitude is kept inside [z_min, z_max].
     """
-    _step_kernel(states, np.ascontiguousarray(commands, dtype=np.float64), active, limits.dt,
+    _step_kernel(states, np.ascontiguousarray(commands, dtype=np.float64), active, False, limits.dt,
+                 limits.v_min, limits.v_max, limits.w_max, limits.a_max, limits.dw_max,
+                 limits.vz_max, limits.az_max, limits.z_min, limits.z_max)
+
+
+def step_actions(states: np.ndarray, actions: np.ndarray, active: np.ndarray, limits: UAVLimits) -> None:
+    """``step(states, actions_to_commands(actions, limits), active, limits)`` in one numba call, for finite
+    ``actions`` (N, 3)."""
+    _step_kernel(states, np.ascontiguousarray(actions, dtype=np.float64), active, True, limits.dt,
                  limits.v_min, limits.v_max, limits.w_max, limits.a_max, limits.dw_max,
                  limits.vz_max, limits.az_max, limits.z_min, limits.z_max)
 

@@ -18,9 +18,10 @@ from pettingzoo import ParallelEnv
 
 from . import dynamics
 from .actions import action_rows
+from .collisions import CRASH_CAUSES, NONE, contacts, separations
 from .config import DisturbanceConfig, EnvConfig, disturbance_preset
 from .dynamics import PSI, STATE_DIM, V, VZ, W
-from .formation import formation_errors, formation_slots, slot_offsets
+from .formation import formation_slots, slot_distances, slot_offsets
 from .kernels import compile_notice
 from .observations import ObservationLayout, build_observations
 from .occupancy import (BLOCK_EDGE, CHUNK_EDGE, MapStore, available_memory, map_memory_estimate,
@@ -38,11 +39,10 @@ _DETOUR = 2.0      # the memory estimate's flight length over the straight start
 INFO_KEYS = ("clearance", "separation", "formation_error", "target_distance", "goal_distance", "speed",
              "altitude", "crashed", "crash_cause", "success", "end_reason", "step", "TimeLimit.truncated")
 INFO_INTEGERS = ("crashed", "crash_cause", "success", "end_reason", "step")   # the counts and codes among them
-# Integer codes of the infos "crash_cause" (per UAV) and "end_reason" (the episode's, 0 while it runs).
+# Integer codes of the infos "crash_cause" (per UAV, collisions.CRASH_CAUSES) and "end_reason" (the episode's, 0
+# while it runs).
 # Success needs every UAV flying: once one crashed, the episode's end reason is that (first) crash.
-CRASH_CAUSES = ("none", "obstacle", "uav", "geofence")
 END_REASONS = ("running", "success", "timeout", "crash-obstacle", "crash-uav", "crash-geofence")
-_OBSTACLE, _UAV, _GEOFENCE = (CRASH_CAUSES.index(c) for c in ("obstacle", "uav", "geofence"))
 
 
 class FormationEnv(ParallelEnv):
@@ -217,14 +217,14 @@ class FormationEnv(ParallelEnv):
         self.maps = self._map_store.maps
         self._sense()
         self.agents = list(self.possible_agents)
-        slots = self._true_slots()
-        self._target_dist = self._target_distances(slots)
-        clearance, ferr = self._clearance(), formation_errors(self.states[:, :3], slots)
+        ferr, self._target_dist = slot_distances(self.states, self._true_slots(), self.goal)
+        clearance = self._clearance()
         self.history = {"positions": [self.states[:, :3].copy()], "yaw": [self.states[:, PSI].copy()],
                         "w": [self.states[:, W].copy()], "formation_error": [ferr],
                         "clearance": [clearance], "crashed": [self.crashed.copy()]}
         obs = self._observe()
-        infos = self._infos(clearance, self._separations(), ferr, self._target_dist, truncated=False)
+        infos = self._infos(clearance, separations(self.states), ferr, self._target_dist,
+                            float(np.linalg.norm(self.states[0, :3] - self.goal)), truncated=False)
         return obs, infos
 
     def _layout(self, seed: int) -> tuple[Scenario, World, PriorMap]:
@@ -261,35 +261,28 @@ class FormationEnv(ParallelEnv):
         cfg = self.config
         was_active = self.active.copy()
         self.broadcast = self.states.copy()
-        commands = dynamics.actions_to_commands(acts, cfg.uav)
-        dynamics.step(self.states, commands, self.active, cfg.uav)
+        dynamics.step_actions(self.states, acts, self.active, cfg.uav)
         self._apply_wind()
         self.step_count += 1
 
         clearance = self._clearance()
-        separation = self._separations()
-        lo, hi = self._bounds
-        pos = self.states[:, :3]
-        outside = np.any((pos[:, :2] < lo[:2]) | (pos[:, :2] > hi[:2]), axis=1)
-        hit_obstacle, hit_uav = clearance < 0.0, separation < 2.0 * cfg.uav.r_uav
-        crashed_now = self.active & (hit_obstacle | hit_uav | outside)
-        first_crash = False
-        if crashed_now.any():
-            cause = np.where(hit_obstacle, _OBSTACLE, np.where(outside, _GEOFENCE, _UAV))
+        separation, cause, any_crash = contacts(self.states, clearance, *self._bounds, 2.0 * cfg.uav.r_uav,
+                                                self.active)
+        crashed_now = cause != NONE
+        first_crash = any_crash and not self.crashed.any()
+        if any_crash:
             self.crash_cause[crashed_now] = cause[crashed_now]
-            first_crash = not self.crashed.any()
             self.crashed |= crashed_now
             self.active &= ~crashed_now
             self.states[crashed_now, V] = self.states[crashed_now, W] = self.states[crashed_now, VZ] = 0.0
 
         self._sense()
-        slots = self._true_slots()
-        ferr = formation_errors(self.states[:, :3], slots)
-        leader_ok = self.active[0] and np.linalg.norm(self.states[0, :3] - self.goal) < cfg.episode.r_goal
-        followers_ok = np.all(ferr[1:][self.active[1:]] < cfg.formation.e_f)
+        ferr, target_dist = slot_distances(self.states, self._true_slots(), self.goal)
+        goal_dist = float(np.linalg.norm(self.states[0, :3] - self.goal))
+        leader_ok = self.active[0] and goal_dist < cfg.episode.r_goal
+        followers_ok = (ferr[1:][self.active[1:]] < cfg.formation.e_f).all()
         self.success = bool(leader_ok and followers_ok and not self.crashed.any())
 
-        target_dist = self._target_distances(slots)
         rew = compute_rewards(cfg.reward, self._target_dist, target_dist, ferr, self._is_follower,
                               crashed_now.astype(float), was_active, acts, self.prev_actions, self.success)
         self._target_dist = target_dist
@@ -305,7 +298,7 @@ class FormationEnv(ParallelEnv):
                 END_REASONS.index("success" if self.success else "timeout")
         live = list(self.agents)
         obs = self._observe()
-        infos = self._infos(clearance, separation, ferr, target_dist, truncated=truncated)
+        infos = self._infos(clearance, separation, ferr, target_dist, goal_dist, truncated=truncated)
         index = self.agent_name_mapping
         rew = rew.tolist()
         rewards = {a: rew[index[a]] for a in live}
@@ -365,12 +358,6 @@ class FormationEnv(ParallelEnv):
     def _clearance(self) -> np.ndarray:
         return self.world.clearance(self.states[:, :3]) - self.config.uav.r_uav
 
-    def _separations(self) -> np.ndarray:
-        pos = self.states[:, :3]
-        d = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=2)
-        np.fill_diagonal(d, np.inf)
-        return d.min(axis=1) if self.n_uavs > 1 else np.full(1, np.inf)
-
     def _true_slots(self) -> np.ndarray:
         lead = self.states[0]
         return formation_slots(lead[:3], lead[PSI], self.offsets, self.config.formation.z_ref, self.slot_altitude)
@@ -379,11 +366,6 @@ class FormationEnv(ParallelEnv):
         lead = self.broadcast[0]
         return formation_slots(lead[:3], lead[PSI], self.offsets, self.config.formation.z_ref, self.slot_altitude)
 
-    def _target_distances(self, slots) -> np.ndarray:
-        targets = slots.copy()
-        targets[0] = self.goal
-        return np.linalg.norm(self.states[:, :3] - targets, axis=1)
-
     def _observe(self) -> dict:
         targets = self._broadcast_slots()
         targets[0] = self.goal
@@ -391,8 +373,7 @@ class FormationEnv(ParallelEnv):
                                  self._map_store, self.present)
         return {a: obs[i] for i, a in enumerate(self.possible_agents)}
 
-    def _infos(self, clearance, separation, ferr, target_dist, truncated: bool) -> dict:
-        goal_dist = float(np.linalg.norm(self.states[0, :3] - self.goal))
+    def _infos(self, clearance, separation, ferr, target_dist, goal_dist: float, truncated: bool) -> dict:
         success, end, step, truncated = int(self.success), int(self.end_reason), int(self.step_count), bool(truncated)
         per_uav = zip(self.possible_agents, clearance.tolist(), separation.tolist(), ferr.tolist(),
                       target_dist.tolist(), self.states[:, V].tolist(), self.states[:, 2].tolist(),

@@ -6,6 +6,9 @@ triangle at most 3, as in the spec's table.
 
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 
 from .config import FORMATION_SHAPES, SLOT_ALTITUDES
@@ -45,10 +48,17 @@ def slot_positions(leader_xy: np.ndarray, leader_yaw: float, offsets: np.ndarray
     """World positions (n, 3) of the slots: p_L + R_z(psi_L) [dx, dy], at altitude z_ref + dz."""
     c, s = np.cos(leader_yaw), np.sin(leader_yaw)
     out = np.empty((offsets.shape[0], 3))
-    out[:, 0] = leader_xy[0] + c * offsets[:, 0] - s * offsets[:, 1]
-    out[:, 1] = leader_xy[1] + s * offsets[:, 0] + c * offsets[:, 1]
-    out[:, 2] = z_ref + offsets[:, 2]
+    _slot_rows(float(leader_xy[0]), float(leader_xy[1]), float(z_ref), float(c), float(s),
+               np.ascontiguousarray(offsets, dtype=np.float64), out)
     return out
+
+
+@numba.njit(cache=True)
+def _slot_rows(x, y, z, c, s, offsets, out):
+    for i in range(offsets.shape[0]):
+        out[i, 0] = x + c * offsets[i, 0] - s * offsets[i, 1]
+        out[i, 1] = y + s * offsets[i, 0] + c * offsets[i, 1]
+        out[i, 2] = z + offsets[i, 2]
 
 
 def formation_slots(leader_position, leader_yaw: float, offsets: np.ndarray, z_ref: float,
@@ -64,6 +74,22 @@ def formation_slots(leader_position, leader_yaw: float, offsets: np.ndarray, z_r
     return slot_positions(leader_position[:2], leader_yaw, offsets, z)
 
 
-def formation_errors(positions: np.ndarray, slots: np.ndarray) -> np.ndarray:
-    """3D distance of every UAV to its slot (the leader's entry is 0 by construction of its slot)."""
-    return np.linalg.norm(positions - slots, axis=1)
+def slot_distances(positions: np.ndarray, slots: np.ndarray, goal) -> tuple[np.ndarray, np.ndarray]:
+    """(formation errors (n,), target distances (n,)) of UAVs at ``positions`` (n, 3), or state rows (n, >= 3)
+    whose first three columns are the position: each UAV's 3D distance to its slot, and to its target (its slot
+    for a follower, ``goal`` for the leader, row 0)."""
+    n = slots.shape[0]
+    ferr, target = np.empty(n), np.empty(n)
+    _slot_distances(np.ascontiguousarray(positions, dtype=np.float64), np.ascontiguousarray(slots, dtype=np.float64),
+                    np.ascontiguousarray(goal, dtype=np.float64), ferr, target)
+    return ferr, target
+
+
+@numba.njit(cache=True)
+def _slot_distances(positions, slots, goal, ferr, target):
+    for i in range(slots.shape[0]):
+        dx, dy, dz = positions[i, 0] - slots[i, 0], positions[i, 1] - slots[i, 1], positions[i, 2] - slots[i, 2]
+        ferr[i] = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if i == 0:
+            dx, dy, dz = positions[0, 0] - goal[0], positions[0, 1] - goal[1], positions[0, 2] - goal[2]
+        target[i] = math.sqrt(dx * dx + dy * dy + dz * dz)

@@ -64,6 +64,16 @@ class ObservationLayout:
         self.size = start
         self.low = np.concatenate([np.full(f.size, f.low, np.float32) for f in self.fields])
         self.high = np.concatenate([np.full(f.size, f.high, np.float32) for f in self.fields])
+        # what build_observations needs of the config on every step, worked out once
+        self._own_columns = tuple(self._slices[name].start if name in self._slices else -1
+                                  for name in ("ego", "target", "role", "neighbours"))
+        self._histogram = None
+        if oc.include_histogram:
+            u = cfg.uav
+            cell = math.radians(oc.histogram_cell_deg)
+            r_e = u.r_uav + u.r_safe + cfg.map.resolution
+            self._histogram = (float(oc.histogram_radius), float(r_e), cell, *histogram_shape(cell),
+                               *weight_constants(2.0, oc.histogram_radius, r_e))
 
     def slice(self, name: str) -> slice:
         if name not in self._slices:
@@ -89,34 +99,29 @@ def build_observations(layout: ObservationLayout, cfg: EnvConfig, states: np.nda
     ``states`` are the true own states, ``broadcast`` the neighbours' broadcast states (one cycle
     old), ``targets`` (N, 3) each UAV's goal or slot, ``maps`` the store of the onboard maps (map i
     is UAV i's), ``neighbour_ok`` (N,) which UAVs still broadcast (a removed UAV does not). The map
-    features of all UAVs come from one numba call each.
+    features of all UAVs come from one numba call each. ``layout`` is ``ObservationLayout(cfg)``: the
+    histogram's constants come from it.
     """
     u, oc = cfg.uav, cfg.observation
     n = states.shape[0]
     out = np.zeros((n, layout.size), np.float32)
-    psi = states[:, PSI]
-    k = oc.k_neighbours
-    _own_features(out, layout.slice("ego").start, layout.slice("target").start, layout.slice("role").start,
-                  layout.slice("neighbours").start if k else -1, np.ascontiguousarray(states, dtype=np.float64),
-                  np.ascontiguousarray(targets, dtype=np.float64), leader_index,
+    states = np.ascontiguousarray(states, dtype=np.float64)
+    _own_features(out, *layout._own_columns, states, np.ascontiguousarray(targets, dtype=np.float64), leader_index,
                   np.ascontiguousarray(broadcast, dtype=np.float64), np.ascontiguousarray(neighbour_ok, dtype=np.bool_),
-                  k, float(oc.neighbour_range), float(u.v_max), float(u.w_max), float(u.vz_max), float(u.z_min),
-                  float(u.z_max), float(oc.target_clip))
-    if oc.include_histogram:
-        cell = math.radians(oc.histogram_cell_deg)
-        r_e = u.r_uav + u.r_safe + cfg.map.resolution
-        a, b = weight_constants(2.0, oc.histogram_radius, r_e)
-        n_e, n_z = histogram_shape(cell)
+                  oc.k_neighbours, float(oc.neighbour_range), float(u.v_max), float(u.w_max), float(u.vz_max),
+                  float(u.z_min), float(u.z_max), float(oc.target_clip))
+    if layout._histogram is not None:
+        radius, r_e, cell, n_e, n_z, a, b = layout._histogram
         h = np.zeros((n, n_e, n_z))
         leaves = maps.levels[0]
         _histograms(leaves.tables, leaves.values, leaves.bits, leaves.counts, leaves.key0, leaves.shape, maps.res,
-                    np.ascontiguousarray(states[:, :3]), np.ascontiguousarray(psi), float(oc.histogram_radius),
-                    float(r_e), cell, n_e, n_z, a, b, h)
+                    np.ascontiguousarray(states[:, :3]), np.ascontiguousarray(states[:, PSI]), radius, r_e, cell, n_e,
+                    n_z, a, b, h)
         out[:, layout.slice("obstacle_histogram")] = -np.expm1(-h.reshape(n, -1))
     if oc.include_crop:
         out[:, layout.slice("map_crop")] = map_crops(maps, states[:, :3], oc.crop_level, oc.crop_cells,
                                                      oc.crop_cells_z).reshape(n, -1)
-    np.clip(out, layout.low, layout.high, out=out)
+    np.minimum(np.maximum(out, layout.low, out=out), layout.high, out=out)  # np.clip without its wrapper's cost
     return out
 
 

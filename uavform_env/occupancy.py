@@ -194,13 +194,13 @@ class MapStore:
         """Insert one scan into each map ``indices[q]``: rays from ``sensor_origins[q]`` to ``endpoints[q]``
         (R, 3), ``hit[q]`` (R,) as in ``OccupancyMap.integrate``. One numba call for all maps."""
         idx = np.ascontiguousarray(indices, dtype=np.int64)
-        if idx.ndim != 1 or np.any((idx < 0) | (idx >= self.n_maps)) or np.bincount(idx).max(initial=0) > 1:
+        if idx.ndim != 1 or ((idx < 0) | (idx >= self.n_maps)).any() or np.bincount(idx).max(initial=0) > 1:
             raise ValueError(f"indices: expected distinct map indices in [0, {self.n_maps - 1}], got {indices!r}")
         o = np.ascontiguousarray(sensor_origins, dtype=np.float64)
-        if o.shape != (idx.size, 3) or not np.all(np.isfinite(o)):
+        if o.shape != (idx.size, 3) or not np.isfinite(o).all():
             raise ValueError(f"sensor_origins: expected finite ({idx.size}, 3) coordinates, got shape {o.shape}")
         ends = np.ascontiguousarray(endpoints, dtype=np.float64)
-        if ends.ndim != 3 or ends.shape[0] != idx.size or ends.shape[2] != 3 or not np.all(np.isfinite(ends)):
+        if ends.ndim != 3 or ends.shape[0] != idx.size or ends.shape[2] != 3 or not np.isfinite(ends).all():
             raise ValueError(f"endpoints: expected finite ({idx.size}, R, 3) coordinates, got shape {ends.shape}")
         hit = np.ascontiguousarray(hit)
         if hit.dtype != np.bool_ or hit.shape != ends.shape[:2]:

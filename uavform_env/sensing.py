@@ -61,10 +61,22 @@ class RangeSensor:
         # the fan at azimuth offset 0; a step's fan is this one rotated about z
         self._fan = np.ascontiguousarray(np.column_stack([np.cos(elevations) * np.cos(azimuths),
                                                           np.cos(elevations) * np.sin(azimuths), np.sin(elevations)]))
+        self._grid = (None, None, None)  # (origin, res, key) of the last grid scanned: see _origin_key
 
     @property
     def n_rays(self) -> int:
         return self.cfg.n_rays
+
+    def _origin_key(self, origin, res) -> np.ndarray:
+        """``dda.grid_origin_key(origin, res)``, worked out once for a read-only origin array (a ``World``'s),
+        which every scan of an episode passes again."""
+        last, last_res, key = self._grid
+        if origin is last and res == last_res and not origin.flags.writeable:
+            return key
+        key = grid_origin_key(origin, res)
+        if isinstance(origin, np.ndarray) and not origin.flags.writeable:
+            self._grid = (origin, res, key)
+        return key
 
     def _azimuth_offset(self, step: int) -> float:
         """Interleave: rotate the fan by frac(step * golden) of one azimuth spacing."""
@@ -88,12 +100,12 @@ class RangeSensor:
         occupied = np.asarray(occupied)
         if occupied.ndim != 3 or occupied.dtype != np.uint8:
             raise ValueError(f"occupied: expected a 3D uint8 grid, got {occupied.dtype} with shape {occupied.shape}")
-        key0 = grid_origin_key(origin, res)
+        key0 = self._origin_key(origin, res)
         positions = np.ascontiguousarray(positions, dtype=np.float64)
-        if positions.ndim != 2 or positions.shape[1] != 3 or not np.all(np.isfinite(positions)):
+        if positions.ndim != 2 or positions.shape[1] != 3 or not np.isfinite(positions).all():
             raise ValueError(f"positions: expected finite (N, 3) coordinates, got shape {positions.shape}")
         yaws = np.asarray(yaws, dtype=np.float64)
-        if yaws.shape != (positions.shape[0],) or not np.all(np.isfinite(yaws)):
+        if yaws.shape != (positions.shape[0],) or not np.isfinite(yaws).all():
             raise ValueError(f"yaws: expected {positions.shape[0]} finite angles (one per position), "
                              f"got shape {yaws.shape}")
         if isinstance(uav_radius, bool) or not np.isfinite(uav_radius) or uav_radius < 0:
