@@ -240,6 +240,44 @@ def test_parked_leader_turns_until_every_slot_is_free():
                                                   0.7)
 
 
+def test_parked_leader_reparks_away_from_a_slot_a_follower_does_not_reach():
+    """``repark_time``: a follower 1.3 m off its slot (e_f 0.5 m) that gains less than ``trail_spacing`` on it for
+    ``repark_time`` s marks that slot point; the leader then parks on the heading nearest its own whose slots all keep
+    ``repark_radius`` from the mark. Slot (-2, -2) turned by psi moves 2 * |(-2, -2)| * sin(psi / 2) = 1 m at psi =
+    20.4 deg: of the 5-deg headings 0, +5, -5, +10, ..., +25 deg is the first."""
+    from types import SimpleNamespace
+
+    from baselines.fusion.controller import _mark_unreached_slots, _park_heading, _UAVMemory
+
+    offsets = np.array([[0.0, 0.0, 0.0], [-2.0, 2.0, 0.0], [-2.0, -2.0, 0.0]])
+    states = np.zeros((2, 7))
+    states[:, :3] = [[-2.0, 2.0, 3.0], [-2.0, -0.7, 3.0]]            # follower 1 on its slot, follower 2 1.3 m off
+    view = SimpleNamespace(limits=UAVLimits(), offsets=offsets, z_ref=3.0, slot_altitude="z_ref",
+                           occupancy=SimpleNamespace(resolution=0.2, occupied_within=lambda c, r: False),
+                           goal=np.array([0.0, 0.0, 3.0]), state=np.array([0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0]),
+                           bounds_lo=np.array([-10.0, -10.0, 0.0]), bounds_hi=np.array([10.0, 10.0, 12.0]),
+                           neighbour_states=states, neighbour_ids=np.array([1, 2]),
+                           neighbour_alive=np.array([True, True]), config=EnvConfig())
+    cfg = ExpertConfig(park_heading="nearest")
+    mem = _UAVMemory()
+    assert _park_heading(view, mem, cfg) == 0.0
+    _mark_unreached_slots(view, mem, cfg, 10.0)                       # the watch starts
+    states[1, 1] = -0.7 - cfg.trail_spacing                           # it gains trail_spacing at 20 s: the clock restarts
+    _mark_unreached_slots(view, mem, cfg, 20.0)
+    _mark_unreached_slots(view, mem, cfg, 20.0 + cfg.repark_time - 0.1)
+    assert len(mem.park_marks) == 0 and _park_heading(view, mem, cfg) == 0.0
+    _mark_unreached_slots(view, mem, cfg, 20.0 + cfg.repark_time)
+    np.testing.assert_allclose(mem.park_marks, [[-2.0, -2.0]])        # only follower 2's slot: follower 1 is on its own
+    assert _park_heading(view, mem, cfg) == pytest.approx(2.0 * math.pi * 5 / 72)
+    # "followers" too parks only on headings whose slots keep repark_radius from the mark
+    psi = _park_heading(view, _UAVMemory(park_marks=mem.park_marks), ExpertConfig())
+    slots = np.array([[math.cos(psi) * x - math.sin(psi) * y, math.sin(psi) * x + math.cos(psi) * y]
+                      for x, y in offsets[1:, :2]])
+    assert np.all(np.hypot(*(slots - [-2.0, -2.0]).T) >= cfg.repark_radius)
+    # repark_time = 0 switches the watch off (the leader's _park does not call it): no mark, no turn
+    assert _park_heading(view, _UAVMemory(), ExpertConfig(park_heading="nearest", repark_time=0.0)) == 0.0
+
+
 def test_followers_take_the_column_fallback_only_until_the_leader_parks_at_the_goal():
     """``_leader_at_goal``: the broadcast leader slower than ``leader_stopped_speed`` and within ``arrive_radius`` of
     the goal (horizontally); then a follower closes on its own slot, the one the env judges (``column_at_goal``)."""

@@ -184,6 +184,13 @@ class ExpertConfig(Config):
                        broadcast positions (the sum of their horizontal distances), kept while its slots stay free.
                        Parked on its own heading after a docking turn, a leader swung the slots of a column's tail
                        12 m away from the followers trailing it [X]
+    repark_time, repark_radius  (no frozen followers) the parked leader watches each live follower's 3D distance to its
+                       slot of the park heading (from the broadcasts); a follower at least e_f off whose distance has
+                       not dropped by ``trail_spacing`` for ``repark_time`` s marks that slot point as unreachable,
+                       and the leader parks again on a heading (chosen by ``park_heading``) none of whose slots lies
+                       within ``repark_radius`` of a marked point. The leader's map, which treats unknown as free, held
+                       slots 0.06-0.17 m from trees it had not seen, and followers froze 0.5-1.3 m off them for the
+                       rest of the episode (forest@1 seeds 1, 2). 0 switches it off [X]
     """
 
     dwa: DWAConfig = field(default_factory=lambda: DWAConfig.ablation("IDWA", approach_speed_profile=True,
@@ -260,6 +267,9 @@ class ExpertConfig(Config):
     guard_hover_speed: float = 0.1
     park_turn: bool = True
     park_heading: str = "followers"
+    # -- no frozen followers (issue 13, session 8 "s8slots")
+    repark_time: float = 15.0
+    repark_radius: float = 1.0
     lateral_emergency_to_dwa: bool = True
 
     BOUNDS: ClassVar[dict] = {
@@ -283,7 +293,7 @@ class ExpertConfig(Config):
                                             "hold_drift_time", "hold_search", "glide_slope", "wind_margin", "vane_wind",
                                             "approach_radius", "guard_clearance", "guard_speed", "guard_gust_time",
                                             "guard_hover_speed", "path_margin",
-                                            "margin_detour")},
+                                            "margin_detour", "repark_time", "repark_radius")},
         **{name: in_range(0.0, lo_open=True) for name in ("wind_tau", "gust_tau")},
         "leader_speed_cap": in_range(0.0, 1.0, lo_open=True),
         "yield_factor": in_range(0.0, 1.0),
