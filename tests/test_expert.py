@@ -151,6 +151,8 @@ def test_weights_change_the_actions():
     (dict(reverse_turn_angle=4.0), "ExpertConfig.reverse_turn_angle"),
     (dict(dock_radius=-1.0), "ExpertConfig.dock_radius"),
     (dict(level_line="yes"), "ExpertConfig.level_line"),
+    (dict(repark_time=-1.0), "ExpertConfig.repark_time"),
+    (dict(repark_radius=float("nan")), "ExpertConfig.repark_radius"),
 ])
 def test_bad_config_names_the_field(kwargs, match):
     with pytest.raises(ValueError, match=match):
