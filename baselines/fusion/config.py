@@ -191,6 +191,9 @@ class ExpertConfig(Config):
                        within ``repark_radius`` of a marked point. The leader's map, which treats unknown as free, held
                        slots 0.06-0.17 m from trees it had not seen, and followers froze 0.5-1.3 m off them for the
                        rest of the episode (forest@1 seeds 1, 2). 0 switches it off [X]
+    park_known         of the headings with free (and unmarked) slots, the leader parks on one whose slots, and the 8
+                       points around each at r_uav + r_safe + a voxel, its map has observed (free or occupied) when
+                       there is one: a slot in unknown space may hold a tree the leader has not seen [X]
     """
 
     dwa: DWAConfig = field(default_factory=lambda: DWAConfig.ablation("IDWA", approach_speed_profile=True,
@@ -268,8 +271,9 @@ class ExpertConfig(Config):
     park_turn: bool = True
     park_heading: str = "followers"
     # -- no frozen followers (issue 13, session 8 "s8slots")
-    repark_time: float = 15.0
+    repark_time: float = 10.0
     repark_radius: float = 1.0
+    park_known: bool = True
     lateral_emergency_to_dwa: bool = True
 
     BOUNDS: ClassVar[dict] = {
@@ -278,7 +282,7 @@ class ExpertConfig(Config):
                                       "climb_target_limit", "gap_hold", "slot_brake",
                                       "park_turn", "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap",
                                       "rejoin_hidden", "final_approach_free", "wind_drift", "dock_approach",
-                                      "explore_unknown", "route_turn_cost")},
+                                      "explore_unknown", "route_turn_cost", "park_known")},
         "astar_layer": one_of(ASTAR_LAYERS),
         "rejoin": one_of(REJOIN_MODES),
         "park_heading": one_of(PARK_HEADINGS),
