@@ -271,7 +271,7 @@ class ExpertConfig(Config):
     park_turn: bool = True
     park_heading: str = "followers"
     # -- no frozen followers (issue 13, session 8 "s8slots")
-    repark_time: float = 10.0
+    repark_time: float = 15.0
     repark_radius: float = 1.0
     park_known: bool = True
     lateral_emergency_to_dwa: bool = True
