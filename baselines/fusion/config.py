@@ -193,7 +193,10 @@ class ExpertConfig(Config):
                        rest of the episode (forest@1 seeds 1, 2). 0 switches it off [X]
     park_known         of the headings with free (and unmarked) slots, the leader parks on one whose slots, and the 8
                        points around each at r_uav + r_safe + a voxel, its map has observed (free or occupied) when
-                       there is one: a slot in unknown space may hold a tree the leader has not seen [X]
+                       there is one: a slot in unknown space may hold a tree the leader has not seen. Off by default:
+                       on the 8-episode follower slice of v1-dev it changed no outcome, and it was not flown on the
+                       seeds 0-9 of ``benchmarks/expert_success.py`` in session 8 (with it, forest@1 seeds 1, 2
+                       succeed in 1148 and 1369 steps, without it in 1287 and 1410) [X]
     """
 
     dwa: DWAConfig = field(default_factory=lambda: DWAConfig.ablation("IDWA", approach_speed_profile=True,
@@ -273,7 +276,7 @@ class ExpertConfig(Config):
     # -- no frozen followers (issue 13, session 8 "s8slots")
     repark_time: float = 15.0
     repark_radius: float = 1.0
-    park_known: bool = True
+    park_known: bool = False
     lateral_emergency_to_dwa: bool = True
 
     BOUNDS: ClassVar[dict] = {
