@@ -185,9 +185,8 @@ class ExpertConfig(Config):
                        Parked on its own heading after a docking turn, a leader swung the slots of a column's tail
                        12 m away from the followers trailing it [X]
     repark_time, repark_radius  (no frozen followers) the parked leader watches each live follower's 3D distance to its
-                       slot of the park heading (from the broadcasts); a follower at least e_f off that has neither
-                       gained ``trail_spacing`` on it nor moved e_f for ``repark_time`` s (it froze) marks that slot
-                       point as unreachable,
+                       slot of the park heading (from the broadcasts); a follower at least e_f off whose distance has
+                       not dropped by ``trail_spacing`` for ``repark_time`` s marks that slot point as unreachable,
                        and the leader parks again on a heading (chosen by ``park_heading``) none of whose slots lies
                        within ``repark_radius`` of a marked point. The leader's map, which treats unknown as free, held
                        slots 0.06-0.17 m from trees it had not seen, and followers froze 0.5-1.3 m off them for the
