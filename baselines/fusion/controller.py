@@ -786,23 +786,18 @@ def _slots_known(view, psi: float, margin: float) -> bool:
 
 def _mark_unreached_slots(view, mem: _UAVMemory, cfg: ExpertConfig, t: float) -> None:
     """[X] ``repark_time``: the parked leader's watch over its followers (broadcasts) on the park heading
-    ``mem.park_psi``. A live follower at least e_f from its slot that has neither gained ``trail_spacing`` on it nor
-    moved e_f (horizontally) for ``repark_time`` s (it has frozen) gets that slot point (x, y) added to
-    ``mem.park_marks``, which ``_park_heading`` keeps every slot ``repark_radius`` away from. A new park heading
-    restarts the watch."""
+    ``mem.park_psi``. A live follower at least e_f from its slot whose 3D slot distance has not dropped by
+    ``trail_spacing`` for ``repark_time`` s gets that slot point (x, y) added to ``mem.park_marks``, which
+    ``_park_heading`` keeps every slot ``repark_radius`` away from. A new park heading restarts the watch."""
     slots = _park_slots(view, mem.park_psi)
-    pos = view.neighbour_states[:, :3]
-    err = np.linalg.norm(pos - slots, axis=1)
+    err = np.linalg.norm(view.neighbour_states[:, :3] - slots, axis=1)
     if mem.park_watch is None or mem.park_watch[0] != mem.park_psi:
-        mem.park_watch = (mem.park_psi, err, np.full(err.shape, t), pos[:, :2].copy())
+        mem.park_watch = (mem.park_psi, err, np.full(err.shape, t))
         return
-    _, best, since, anchor = mem.park_watch
-    e_f = view.config.formation.e_f
+    _, best, since = mem.park_watch
     gained = err <= best - cfg.trail_spacing
-    moving = np.hypot(*(pos[:, :2] - anchor).T) >= e_f
-    best[gained] = err[gained]
-    since[gained | moving], anchor[gained | moving] = t, pos[gained | moving, :2]
-    unreached = view.neighbour_alive & (err >= e_f) & (t - since >= cfg.repark_time)
+    best[gained], since[gained] = err[gained], t
+    unreached = view.neighbour_alive & (err >= view.config.formation.e_f) & (t - since >= cfg.repark_time)
     if unreached.any():
         mem.park_marks = np.vstack([mem.park_marks, slots[unreached, :2]])
         mem.park_watch = None
