@@ -300,11 +300,12 @@ def test_parked_leader_prefers_slots_its_map_has_observed():
                                                      is_known=lambda p: np.asarray(p)[:, 1] >= -1.0),
                            state=np.array([0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0]),
                            bounds_lo=np.array([-10.0, -10.0, 0.0]), bounds_hi=np.array([10.0, 10.0, 12.0]))
-    assert _park_heading(view, _UAVMemory(), ExpertConfig(park_heading="nearest")) == pytest.approx(math.radians(-40))
+    known = ExpertConfig(park_heading="nearest", park_known=True)
+    assert _park_heading(view, _UAVMemory(), known) == pytest.approx(math.radians(-40))
     assert _park_heading(view, _UAVMemory(), ExpertConfig(park_heading="nearest", park_known=False)) == 0.0
     nowhere = SimpleNamespace(**{**vars(view), "occupancy": SimpleNamespace(
         resolution=0.2, occupied_within=lambda c, r: False, is_known=lambda p: np.zeros(len(p), bool))})
-    assert _park_heading(nowhere, _UAVMemory(), ExpertConfig(park_heading="nearest")) == 0.0   # none observed: free
+    assert _park_heading(nowhere, _UAVMemory(), known) == 0.0   # none observed: any free heading
 
 
 def test_followers_take_the_column_fallback_only_until_the_leader_parks_at_the_goal():
