@@ -270,7 +270,7 @@ def test_parked_leader_reparks_away_from_a_slot_a_follower_does_not_reach():
     mem = _UAVMemory()
     assert _park_heading(view, mem, cfg) == 0.0
     _mark_unreached_slots(view, mem, cfg, 10.0)                       # the watch starts
-    states[1, 1] = -0.7 - cfg.trail_spacing                           # it gains trail_spacing at 20 s: the clock restarts
+    states[1, 1] = -0.7 - cfg.trail_spacing                    # it gains trail_spacing at 20 s: the clock restarts
     _mark_unreached_slots(view, mem, cfg, 20.0)
     _mark_unreached_slots(view, mem, cfg, 20.0 + cfg.repark_time - 0.1)
     assert len(mem.park_marks) == 0 and _park_heading(view, mem, cfg) == 0.0
