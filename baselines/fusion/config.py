@@ -192,6 +192,19 @@ class ExpertConfig(Config):
                        broadcast positions (the sum of their horizontal distances), kept while its slots stay free.
                        Parked on its own heading after a docking turn, a leader swung the slots of a column's tail
                        12 m away from the followers trailing it [X]
+    repark_time, repark_radius  (no frozen followers) the parked leader watches each live follower's 3D distance to its
+                       slot of the park heading (from the broadcasts); a follower at least e_f off whose distance has
+                       not dropped by ``trail_spacing`` for ``repark_time`` s marks that slot point as unreachable,
+                       and the leader parks again on a heading (chosen by ``park_heading``) none of whose slots lies
+                       within ``repark_radius`` of a marked point. The leader's map, which treats unknown as free, held
+                       slots 0.06-0.17 m from trees it had not seen, and followers froze 0.5-1.3 m off them for the
+                       rest of the episode (forest@1 seeds 1, 2). 0 switches it off [X]
+    park_known         of the headings with free (and unmarked) slots, the leader parks on one whose slots, and the 8
+                       points around each at r_uav + r_safe + a voxel, its map has observed (free or occupied) when
+                       there is one: a slot in unknown space may hold a tree the leader has not seen. Off by default:
+                       on the 8-episode follower slice of v1-dev it changed no outcome, and it was not flown on the
+                       seeds 0-9 of ``benchmarks/expert_success.py`` in session 8 (with it, forest@1 seeds 1, 2
+                       succeed in 1148 and 1369 steps, without it in 1287 and 1410) [X]
     """
 
     dwa: DWAConfig = field(default_factory=lambda: DWAConfig.ablation("IDWA", approach_speed_profile=True,
@@ -268,6 +281,10 @@ class ExpertConfig(Config):
     guard_hover_speed: float = 0.1
     park_turn: bool = True
     park_heading: str = "followers"
+    # -- no frozen followers (issue 13, session 8 "s8slots")
+    repark_time: float = 15.0
+    repark_radius: float = 1.0
+    park_known: bool = False
     lateral_emergency_to_dwa: bool = True
     # the passable raster: free evidence of a way (s8maze: classic-2d "extended" under noisy, issue 13)
     way_misses: int = 4
@@ -278,7 +295,7 @@ class ExpertConfig(Config):
                                       "climb_target_limit", "gap_hold", "slot_brake",
                                       "park_turn", "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap",
                                       "rejoin_hidden", "final_approach_free", "wind_drift", "dock_approach",
-                                      "explore_unknown", "route_turn_cost")},
+                                      "explore_unknown", "route_turn_cost", "park_known")},
         "astar_layer": one_of(ASTAR_LAYERS),
         "rejoin": one_of(REJOIN_MODES),
         "park_heading": one_of(PARK_HEADINGS),
@@ -294,7 +311,7 @@ class ExpertConfig(Config):
                                             "hold_drift_time", "hold_search", "glide_slope", "wind_margin", "vane_wind",
                                             "approach_radius", "guard_clearance", "guard_speed", "guard_gust_time",
                                             "guard_hover_speed", "path_margin",
-                                            "margin_detour")},
+                                            "margin_detour", "repark_time", "repark_radius")},
         **{name: in_range(0.0, lo_open=True) for name in ("wind_tau", "gust_tau")},
         "leader_speed_cap": in_range(0.0, 1.0, lo_open=True),
         "yield_factor": in_range(0.0, 1.0),

@@ -50,6 +50,8 @@ class _UAVMemory(PlannerMemory):
     trail_progress: int = 0
     arrived: bool = False
     park_psi: float | None = None
+    park_marks: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
+    park_watch: tuple | None = None
     best_goal_distance: float = math.inf
     last_progress_time: float = 0.0
     wind: np.ndarray = field(default_factory=lambda: np.zeros(2))
@@ -228,7 +230,10 @@ class FusionExpert(OnboardPolicy):
     def _park(self, view, mem: _UAVMemory, cfg: ExpertConfig, z_slot: float) -> np.ndarray:
         """The arrived leader holds the goal against the wind (``rules.station_keep``), turning in place to a heading
         with free slots (``park_turn``)."""
-        self.diagnostics[view.agent] = {"mode": mem.mode, "stuck": False, "arrived": True, "replans": mem.replans}
+        self.diagnostics[view.agent] = {"mode": mem.mode, "stuck": False, "arrived": True, "replans": mem.replans,
+                                        "repark_marks": len(mem.park_marks)}
+        if cfg.park_turn and cfg.repark_time > 0.0 and mem.park_psi is not None:
+            _mark_unreached_slots(view, mem, cfg, view.step * view.limits.dt)
         heading = _park_heading(view, mem, cfg) if cfg.park_turn else float(view.state[PSI])
         cmd = station_keep(view, mem, cfg, view.goal[:2], heading)
         return np.array([cmd.v, cmd.w, self._hold_altitude(view, cfg, z_slot)])
@@ -771,10 +776,16 @@ def _predict_unicycle(state, horizon: float, dt: float):
     return np.array([x, y]), float(psi[-1])
 
 
+def _park_slots(view, psi: float) -> np.ndarray:
+    """The followers' slots (K, 3; UAVs 1..K, the leader's ``neighbour_ids`` order) of a leader parked at its position
+    with heading ``psi`` (at the goal's altitude)."""
+    at_goal = np.array([view.state[0], view.state[1], view.goal[2]])
+    return formation_slots(at_goal, psi, view.offsets[1:], view.z_ref, view.slot_altitude)
+
+
 def _slots_free(view, psi: float, margin: float) -> bool:
     """Whether every follower slot of a leader at its position with heading ``psi`` is free in its own map."""
-    at_goal = np.array([view.state[0], view.state[1], view.goal[2]])
-    for slot in formation_slots(at_goal, psi, view.offsets[1:], view.z_ref, view.slot_altitude):
+    for slot in _park_slots(view, psi):
         if np.any(slot[:2] < view.bounds_lo[:2] + margin) or np.any(slot[:2] > view.bounds_hi[:2] - margin):
             return False
         if view.occupancy.occupied_within(slot, margin):
@@ -782,21 +793,65 @@ def _slots_free(view, psi: float, margin: float) -> bool:
     return True
 
 
+def _slots_unmarked(view, psi: float, marks: np.ndarray, radius: float) -> bool:
+    """Whether no follower slot of heading ``psi`` lies within ``radius`` (horizontally) of a marked point (``marks``,
+    (K, 2): slots a follower did not reach, ``repark_time``)."""
+    if len(marks) == 0:
+        return True
+    slots = _park_slots(view, psi)[:, :2]
+    return bool(np.all(((slots[:, None, :] - marks[None, :, :]) ** 2).sum(axis=2) >= radius * radius))
+
+
+def _slots_known(view, psi: float, margin: float) -> bool:
+    """Whether the leader's own map has observed (free or occupied) every slot point of heading ``psi`` and the 8
+    points around each at ``margin`` horizontally (``park_known``)."""
+    ring = np.linspace(0.0, 2.0 * math.pi, 9)[:8]
+    probe = np.vstack([np.zeros(3), np.column_stack([margin * np.cos(ring), margin * np.sin(ring), np.zeros(8)])])
+    return bool(view.occupancy.is_known((_park_slots(view, psi)[:, None, :] + probe[None]).reshape(-1, 3)).all())
+
+
+def _mark_unreached_slots(view, mem: _UAVMemory, cfg: ExpertConfig, t: float) -> None:
+    """[X] ``repark_time``: the parked leader's watch over its followers (broadcasts) on the park heading
+    ``mem.park_psi``. A live follower at least e_f from its slot whose 3D slot distance has not dropped by
+    ``trail_spacing`` for ``repark_time`` s gets that slot point (x, y) added to ``mem.park_marks``, which
+    ``_park_heading`` keeps every slot ``repark_radius`` away from. A new park heading restarts the watch."""
+    slots = _park_slots(view, mem.park_psi)
+    err = np.linalg.norm(view.neighbour_states[:, :3] - slots, axis=1)
+    if mem.park_watch is None or mem.park_watch[0] != mem.park_psi:
+        mem.park_watch = (mem.park_psi, err, np.full(err.shape, t))
+        return
+    _, best, since = mem.park_watch
+    gained = err <= best - cfg.trail_spacing
+    best[gained], since[gained] = err[gained], t
+    unreached = view.neighbour_alive & (err >= view.config.formation.e_f) & (t - since >= cfg.repark_time)
+    if unreached.any():
+        mem.park_marks = np.vstack([mem.park_marks, slots[unreached, :2]])
+        mem.park_watch = None
+
+
 def _park_heading(view, mem: _UAVMemory, cfg: ExpertConfig, n: int = 72) -> float:
-    """The parked leader's heading: the one it parked on while those slots stay free, else one of the headings
-    (its own, then turned outward in steps of 2 pi / ``n``) with free slots, chosen by ``cfg.park_heading``; none
-    frees every slot: its own."""
+    """The parked leader's heading: the one it parked on while those slots stay free (and unmarked), else one of the
+    headings (its own, then turned outward in steps of 2 pi / ``n``) with free slots, chosen by ``cfg.park_heading``,
+    among those whose slots keep ``repark_radius`` from the slots followers did not reach (``repark_time``) when any
+    does, and of those among the ones whose slots its map has observed (``park_known``) when any; none frees every
+    slot: its own."""
     lim = view.limits
     margin = lim.r_uav + lim.r_safe + view.occupancy.resolution
-    if mem.park_psi is not None and _slots_free(view, mem.park_psi, margin):
+    marks, radius = mem.park_marks, cfg.repark_radius
+    if (mem.park_psi is not None and _slots_free(view, mem.park_psi, margin)
+            and _slots_unmarked(view, mem.park_psi, marks, radius)):
         return mem.park_psi
     psi = float(view.state[PSI])
     turns = [psi] + [wrap(psi + sign * k * 2.0 * math.pi / n) for k in range(1, n // 2 + 1) for sign in (1.0, -1.0)]
+    free = [cand for cand in turns if _slots_free(view, cand, margin)]
+    unmarked = [cand for cand in free if _slots_unmarked(view, cand, marks, radius)]
+    free = unmarked or free
+    if cfg.park_known:
+        free = [cand for cand in free if _slots_known(view, cand, margin)] or free
     if cfg.park_heading == "nearest":
-        mem.park_psi = next((cand for cand in turns if _slots_free(view, cand, margin)), psi)
+        mem.park_psi = free[0] if free else psi
     else:
-        mem.park_psi = _heading_nearest_followers(view, [cand for cand in turns if _slots_free(view, cand, margin)],
-                                                  psi)
+        mem.park_psi = _heading_nearest_followers(view, free, psi)
     return mem.park_psi
 
 
