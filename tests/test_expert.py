@@ -152,7 +152,6 @@ def test_weights_change_the_actions():
     (dict(dock_radius=-1.0), "ExpertConfig.dock_radius"),
     (dict(level_line="yes"), "ExpertConfig.level_line"),
     (dict(repark_time=-1.0), "ExpertConfig.repark_time"),
-    (dict(park_known=1), "ExpertConfig.park_known"),
     (dict(repark_radius=float("nan")), "ExpertConfig.repark_radius"),
 ])
 def test_bad_config_names_the_field(kwargs, match):
@@ -206,9 +205,6 @@ def test_parked_leader_turns_until_every_slot_is_free():
         def occupied_within(self, c, r):
             return math.hypot(c[0] + 2.0, c[1] - 2.0) < 1.0 + r
 
-        def is_known(self, points):                  # observed everywhere (park_known has no say)
-            return np.ones(len(points), bool)
-
     offsets = np.array([[0.0, 0.0, 0.0], [-2.0, 2.0, 0.0], [-2.0, -2.0, 0.0]])   # two rear slots
     view = SimpleNamespace(limits=UAVLimits(), occupancy=Map(), offsets=offsets, z_ref=3.0, slot_altitude="z_ref",
                            goal=np.array([0.0, 0.0, 3.0]),
@@ -224,8 +220,7 @@ def test_parked_leader_turns_until_every_slot_is_free():
     view.state[3] = psi * 0.5                      # half-way through the turn: the target heading stays
     assert _park_heading(view, mem, nearest) == psi
     free = SimpleNamespace(**{**vars(view), "occupancy": SimpleNamespace(resolution=0.2,
-                                                                         occupied_within=lambda c, r: False,
-                                                                         is_known=view.occupancy.is_known)})
+                                                                         occupied_within=lambda c, r: False)})
     free.state = np.array([0.0, 0.0, 3.0, 0.3, 0.0, 0.0, 0.0])
     assert _park_heading(free, _UAVMemory(), nearest) == 0.3
     # "followers": of the free headings, the one whose slots lie nearest the followers' broadcasts. Both followers
@@ -260,8 +255,7 @@ def test_parked_leader_reparks_away_from_a_slot_a_follower_does_not_reach():
     states = np.zeros((2, 7))
     states[:, :3] = [[-2.0, 2.0, 3.0], [-2.0, -0.7, 3.0]]            # follower 1 on its slot, follower 2 1.3 m off
     view = SimpleNamespace(limits=UAVLimits(), offsets=offsets, z_ref=3.0, slot_altitude="z_ref",
-                           occupancy=SimpleNamespace(resolution=0.2, occupied_within=lambda c, r: False,
-                                                     is_known=lambda p: np.ones(len(p), bool)),
+                           occupancy=SimpleNamespace(resolution=0.2, occupied_within=lambda c, r: False),
                            goal=np.array([0.0, 0.0, 3.0]), state=np.array([0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0]),
                            bounds_lo=np.array([-10.0, -10.0, 0.0]), bounds_hi=np.array([10.0, 10.0, 12.0]),
                            neighbour_states=states, neighbour_ids=np.array([1, 2]),
@@ -284,28 +278,6 @@ def test_parked_leader_reparks_away_from_a_slot_a_follower_does_not_reach():
     assert np.all(np.hypot(*(slots - [-2.0, -2.0]).T) >= cfg.repark_radius)
     # repark_time = 0 switches the watch off (the leader's _park does not call it): no mark, no turn
     assert _park_heading(view, _UAVMemory(), ExpertConfig(park_heading="nearest", repark_time=0.0)) == 0.0
-
-
-def test_parked_leader_prefers_slots_its_map_has_observed():
-    """``park_known``: the map has observed only y >= -1. Slot (-2, -2) turned by psi lies at y = -2 (sin psi +
-    cos psi); with its ring of radius r_uav + r_safe + a voxel (0.7 m) it is observed once y >= -0.3, first at
-    psi = -40 deg of the 5-deg headings 0, +5, -5, ... (slot (-2, 2) stays at y > 0 there). Without it: heading 0."""
-    from types import SimpleNamespace
-
-    from baselines.fusion.controller import _park_heading, _UAVMemory
-
-    view = SimpleNamespace(limits=UAVLimits(), offsets=np.array([[0.0, 0.0, 0.0], [-2.0, 2.0, 0.0], [-2.0, -2.0, 0.0]]),
-                           z_ref=3.0, slot_altitude="z_ref", goal=np.array([0.0, 0.0, 3.0]),
-                           occupancy=SimpleNamespace(resolution=0.2, occupied_within=lambda c, r: False,
-                                                     is_known=lambda p: np.asarray(p)[:, 1] >= -1.0),
-                           state=np.array([0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0]),
-                           bounds_lo=np.array([-10.0, -10.0, 0.0]), bounds_hi=np.array([10.0, 10.0, 12.0]))
-    known = ExpertConfig(park_heading="nearest", park_known=True)
-    assert _park_heading(view, _UAVMemory(), known) == pytest.approx(math.radians(-40))
-    assert _park_heading(view, _UAVMemory(), ExpertConfig(park_heading="nearest", park_known=False)) == 0.0
-    nowhere = SimpleNamespace(**{**vars(view), "occupancy": SimpleNamespace(
-        resolution=0.2, occupied_within=lambda c, r: False, is_known=lambda p: np.zeros(len(p), bool))})
-    assert _park_heading(nowhere, _UAVMemory(), known) == 0.0   # none observed: any free heading
 
 
 def test_followers_take_the_column_fallback_only_until_the_leader_parks_at_the_goal():

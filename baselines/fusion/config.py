@@ -199,12 +199,6 @@ class ExpertConfig(Config):
                        within ``repark_radius`` of a marked point. The leader's map, which treats unknown as free, held
                        slots 0.06-0.17 m from trees it had not seen, and followers froze 0.5-1.3 m off them for the
                        rest of the episode (forest@1 seeds 1, 2). 0 switches it off [X]
-    park_known         of the headings with free (and unmarked) slots, the leader parks on one whose slots, and the 8
-                       points around each at r_uav + r_safe + a voxel, its map has observed (free or occupied) when
-                       there is one: a slot in unknown space may hold a tree the leader has not seen. Off by default:
-                       on the 8-episode follower slice of v1-dev it changed no outcome, and it was not flown on the
-                       seeds 0-9 of ``benchmarks/expert_success.py`` in session 8 (with it, forest@1 seeds 1, 2
-                       succeed in 1148 and 1369 steps, without it in 1287 and 1410) [X]
     """
 
     dwa: DWAConfig = field(default_factory=lambda: DWAConfig.ablation("IDWA", approach_speed_profile=True,
@@ -284,7 +278,6 @@ class ExpertConfig(Config):
     # -- no frozen followers (issue 13, session 8 "s8slots")
     repark_time: float = 15.0
     repark_radius: float = 1.0
-    park_known: bool = False
     lateral_emergency_to_dwa: bool = True
     # the passable raster: free evidence of a way (s8maze: classic-2d "extended" under noisy, issue 13)
     way_misses: int = 4
@@ -295,7 +288,7 @@ class ExpertConfig(Config):
                                       "climb_target_limit", "gap_hold", "slot_brake",
                                       "park_turn", "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap",
                                       "rejoin_hidden", "final_approach_free", "wind_drift", "dock_approach",
-                                      "explore_unknown", "route_turn_cost", "park_known")},
+                                      "explore_unknown", "route_turn_cost")},
         "astar_layer": one_of(ASTAR_LAYERS),
         "rejoin": one_of(REJOIN_MODES),
         "park_heading": one_of(PARK_HEADINGS),

@@ -802,14 +802,6 @@ def _slots_unmarked(view, psi: float, marks: np.ndarray, radius: float) -> bool:
     return bool(np.all(((slots[:, None, :] - marks[None, :, :]) ** 2).sum(axis=2) >= radius * radius))
 
 
-def _slots_known(view, psi: float, margin: float) -> bool:
-    """Whether the leader's own map has observed (free or occupied) every slot point of heading ``psi`` and the 8
-    points around each at ``margin`` horizontally (``park_known``)."""
-    ring = np.linspace(0.0, 2.0 * math.pi, 9)[:8]
-    probe = np.vstack([np.zeros(3), np.column_stack([margin * np.cos(ring), margin * np.sin(ring), np.zeros(8)])])
-    return bool(view.occupancy.is_known((_park_slots(view, psi)[:, None, :] + probe[None]).reshape(-1, 3)).all())
-
-
 def _mark_unreached_slots(view, mem: _UAVMemory, cfg: ExpertConfig, t: float) -> None:
     """[X] ``repark_time``: the parked leader's watch over its followers (broadcasts) on the park heading
     ``mem.park_psi``. A live follower at least e_f from its slot whose 3D slot distance has not dropped by
@@ -833,8 +825,7 @@ def _park_heading(view, mem: _UAVMemory, cfg: ExpertConfig, n: int = 72) -> floa
     """The parked leader's heading: the one it parked on while those slots stay free (and unmarked), else one of the
     headings (its own, then turned outward in steps of 2 pi / ``n``) with free slots, chosen by ``cfg.park_heading``,
     among those whose slots keep ``repark_radius`` from the slots followers did not reach (``repark_time``) when any
-    does, and of those among the ones whose slots its map has observed (``park_known``) when any; none frees every
-    slot: its own."""
+    does; none frees every slot: its own."""
     lim = view.limits
     margin = lim.r_uav + lim.r_safe + view.occupancy.resolution
     marks, radius = mem.park_marks, cfg.repark_radius
@@ -846,8 +837,6 @@ def _park_heading(view, mem: _UAVMemory, cfg: ExpertConfig, n: int = 72) -> floa
     free = [cand for cand in turns if _slots_free(view, cand, margin)]
     unmarked = [cand for cand in free if _slots_unmarked(view, cand, marks, radius)]
     free = unmarked or free
-    if cfg.park_known:
-        free = [cand for cand in free if _slots_known(view, cand, margin)] or free
     if cfg.park_heading == "nearest":
         mem.park_psi = free[0] if free else psi
     else:
