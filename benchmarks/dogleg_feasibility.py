@@ -43,7 +43,8 @@ def visible(blocked: np.ndarray, origin, res: float, pos, r_max: float, n_rays: 
 
 def greedy_explorer(blocked, raster, start, goal, inflate_radius: float, r_max: float, cfg, step: float = 0.5,
                     arrive: float = 0.3, max_length: float = 300.0) -> float:
-    """The length a greedy explorer flies from ``start`` to within ``arrive`` of ``goal`` (inf: none by ``max_length``)."""
+    """The length a greedy explorer flies from ``start`` to within ``arrive`` of ``goal`` (inf: none by
+    ``max_length``)."""
     from baselines.astar import plan_path
 
     known = np.zeros(blocked.shape, bool)
