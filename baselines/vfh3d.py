@@ -485,16 +485,17 @@ def _cycle_kernel(voxels, voxel_probs, neighbours, pos, previous, psi, r_t, e_ma
     """Stages (f1)-(f7) in one call: (emergency, n_open, row, column, primary, binary, masked, window_open).
 
     ``setup``: the fields of a ``CycleSetup``, in order, as a plain tuple (numba types a named tuple passed
-    from Python about 2.5 us slower). Neighbours join the voxels as pseudo-voxels with o = 1 and radius
-    ``r_neighbour``. The stage kernels are called directly: ``vfh3d_step`` builds their inputs, so the
+    from Python about 2.5 us slower), made a ``CycleSetup`` again here. Neighbours join the voxels as
+    pseudo-voxels with o = 1 and radius ``setup.r_neighbour``. The stage kernels are called directly: ``vfh3d_step`` builds their inputs, so the
     wrappers' checks (primary_histogram, update_binary, masked_histogram) hold by construction. One dispatch,
     and no array built in Python, since each numpy call there costs microseconds on cold caches.
     """
-    (units, r_e, r_neighbour, k4, win, cell, R_w, a, b, paper_floor, tau_low, tau_high, z_min, z_max) = setup
+    setup = CycleSetup(*setup)
+    units, cell, R_w = setup.units, setup.cell, setup.R_w
     m, k = voxels.shape[0], neighbours.shape[0]
     centres = np.empty((m + k, 3))
     probs = np.ones(m + k)
-    radii = np.full(m + k, r_e)
+    radii = np.full(m + k, setup.r_e)
     for i in range(m):  # element loops: slice assignments would add seconds of compile time
         for c in range(3):
             centres[i, c] = voxels[i, c]
@@ -502,16 +503,18 @@ def _cycle_kernel(voxels, voxel_probs, neighbours, pos, previous, psi, r_t, e_ma
     for i in range(k):
         for c in range(3):
             centres[m + i, c] = neighbours[i, c]
-        radii[m + i] = r_neighbour
+        radii[m + i] = setup.r_neighbour
     n_e, n_z = units.shape[0], units.shape[1]
     primary = np.zeros((n_e, n_z))
     binary = np.empty((n_e, n_z), dtype=np.uint8)
     masked = np.empty((n_e, n_z), dtype=np.uint8)
-    emergency = _primary_kernel(centres, probs, radii, pos, cell, n_e, n_z, R_w, a, b, paper_floor, 0.0, primary)
-    _binary_kernel(primary.ravel(), previous.ravel(), tau_low, tau_high, binary.ravel())
+    emergency = _primary_kernel(centres, probs, radii, pos, cell, n_e, n_z, R_w, setup.a, setup.b,
+                                setup.paper_floor, 0.0, primary)
+    _binary_kernel(primary.ravel(), previous.ravel(), setup.tau_low, setup.tau_high, binary.ravel())
     delta_r, delta_l = _turning_kernel(centres, probs, radii, pos, psi, r_t, R_w)
-    _mask_kernel(binary, psi, delta_r, delta_l, e_max, pos[2], R_w, z_min, z_max, cell, masked)
-    n_open, row, col, _, window_open = _choose_kernel(masked, primary, directions, gains, k4, win, units, cell)
+    _mask_kernel(binary, psi, delta_r, delta_l, e_max, pos[2], R_w, setup.z_min, setup.z_max, cell, masked)
+    n_open, row, col, _, window_open = _choose_kernel(masked, primary, directions, gains, setup.k4, setup.win,
+                                                      units, cell)
     return emergency, n_open, row, col, primary, binary, masked, window_open
 
 

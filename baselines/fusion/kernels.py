@@ -124,7 +124,7 @@ def gap_altitude_kernel(parts, origin, res, pos, u, ts, z_pref, span, h_b, z_min
     types from Python far faster than a new named tuple every call): the columns at ``pos + ts * u``, the first
     blocking the band around ``z_pref``, and the runs known free through it and the next ``span - 1`` columns;
     NaN if none."""
-    leaves = MapArrays(parts[0], parts[1], parts[2], parts[3], parts[4])
+    leaves = MapArrays(*parts)
     nx, ny, nz = leaves.shape[0], leaves.shape[1], leaves.shape[2]
     cols = np.empty((ts.size, 2), np.int64)
     k_cols = 0
