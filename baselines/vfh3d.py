@@ -523,11 +523,11 @@ def _cycle_setup(cfg: VFHConfig, limits: UAVLimits, voxel_size: float) -> tuple[
     """(elevation, azimuth, CycleSetup): the cell-centre angles and the kernel's configuration inputs."""
     r_e, a, b, extra = cfg.resolve(limits, voxel_size)
     elevation, azimuth, units = cell_geometry(cfg.alpha_h)
+    paper_floor = cfg.enlarge_mode == "paper_floor"
     return elevation, azimuth, CycleSetup(
         units, float(r_e), float(r_e + extra), float(cfg.k4), cfg.win, float(cfg.alpha_h), float(cfg.R_w), float(a),
-        float(b), cfg.enlarge_mode == "paper_floor",
-        width_steps(float(cfg.alpha_h), cfg.enlarge_mode == "paper_floor"), float(cfg.tau_low), float(cfg.tau_high), float(limits.z_min),
-        float(limits.z_max))
+        float(b), paper_floor, width_steps(float(cfg.alpha_h), paper_floor), float(cfg.tau_low), float(cfg.tau_high),
+        float(limits.z_min), float(limits.z_max))
 
 
 _GAINS = ("k1", "k2", "k3")  # per-call inputs of the selection (the residual-RL weights), not part of the setup

@@ -199,8 +199,8 @@ def _own_features(out, ego, tgt, role, nbr, states, targets, leader, broadcast, 
             out[i, col + 6] = 1.0
 
 @numba.njit(cache=True)
-def _histograms(tables, values, bits, counts, key0, shape, res, positions, psi, radius, r_e, cell, n_e, n_z, a, b, steps,
-                out):
+def _histograms(tables, values, bits, counts, key0, shape, res, positions, psi, radius, r_e, cell, n_e, n_z, a, b,
+                steps, out):
     """out[m] += the body-frame primary polar histogram (``ceil_2d``, ``steps`` its ``width_steps``) of map m's
     occupied voxels within ``radius``."""
     for m in range(positions.shape[0]):
