@@ -20,7 +20,7 @@ import numpy as np
 from uavform_env.config import Config, UAVLimits, check_range, in_range, integer, one_of, optional
 from uavform_env.dynamics import wrap
 from uavform_env.polar_histogram import (ENLARGE_MODES, WEIGHT_RELATIONS, _primary_kernel, cell_geometry,
-                                         cell_index, histogram_shape, weight_constants)
+                                         cell_index, histogram_shape, weight_constants, width_steps)
 
 
 @dataclass(frozen=True)
@@ -474,6 +474,7 @@ class CycleSetup(NamedTuple):
     a: float
     b: float
     paper_floor: bool          # enlarge_mode == "paper_floor"
+    width_steps: np.ndarray    # polar_histogram.width_steps(cell, paper_floor)
     tau_low: float
     tau_high: float
     z_min: float
@@ -509,7 +510,7 @@ def _cycle_kernel(voxels, voxel_probs, neighbours, pos, previous, psi, r_t, e_ma
     binary = np.empty((n_e, n_z), dtype=np.uint8)
     masked = np.empty((n_e, n_z), dtype=np.uint8)
     emergency = _primary_kernel(centres, probs, radii, pos, cell, n_e, n_z, R_w, setup.a, setup.b,
-                                setup.paper_floor, 0.0, primary)
+                                setup.paper_floor, setup.width_steps, 0.0, primary)
     _binary_kernel(primary.ravel(), previous.ravel(), setup.tau_low, setup.tau_high, binary.ravel())
     delta_r, delta_l = _turning_kernel(centres, probs, radii, pos, psi, r_t, R_w)
     _mask_kernel(binary, psi, delta_r, delta_l, e_max, pos[2], R_w, setup.z_min, setup.z_max, cell, masked)
@@ -522,10 +523,11 @@ def _cycle_setup(cfg: VFHConfig, limits: UAVLimits, voxel_size: float) -> tuple[
     """(elevation, azimuth, CycleSetup): the cell-centre angles and the kernel's configuration inputs."""
     r_e, a, b, extra = cfg.resolve(limits, voxel_size)
     elevation, azimuth, units = cell_geometry(cfg.alpha_h)
+    paper_floor = cfg.enlarge_mode == "paper_floor"
     return elevation, azimuth, CycleSetup(
         units, float(r_e), float(r_e + extra), float(cfg.k4), cfg.win, float(cfg.alpha_h), float(cfg.R_w), float(a),
-        float(b), cfg.enlarge_mode == "paper_floor", float(cfg.tau_low), float(cfg.tau_high), float(limits.z_min),
-        float(limits.z_max))
+        float(b), paper_floor, width_steps(float(cfg.alpha_h), paper_floor), float(cfg.tau_low), float(cfg.tau_high),
+        float(limits.z_min), float(limits.z_max))
 
 
 _GAINS = ("k1", "k2", "k3")  # per-call inputs of the selection (the residual-RL weights), not part of the setup

@@ -13,7 +13,7 @@ from uavform_env.dda import coord_key, ray_key_bound, ray_keys
 from uavform_env.env import FormationEnv
 from uavform_env.observations import _histograms
 from uavform_env.occupancy import BLOCK_BYTES, MapStore, OccupancyMap
-from uavform_env.polar_histogram import histogram_shape, primary_histogram
+from uavform_env.polar_histogram import histogram_shape, primary_histogram, width_steps
 
 RES = 0.2
 CFG = MapConfig()
@@ -85,7 +85,7 @@ def test_batched_histograms_equal_the_per_map_path():
     got = np.zeros((4, n_e, n_z))
     leaves = store.levels[0]
     _histograms(leaves.tables, leaves.values, leaves.bits, leaves.counts, leaves.key0, leaves.shape, RES, pos, psi,
-                radius, r_e, cell, n_e, n_z, a, b, got)
+                radius, r_e, cell, n_e, n_z, a, b, width_steps(cell, False), got)
     assert got.sum() > 0
     for i, m in enumerate(store.maps):
         centres, probs = m.occupied_in_sphere(pos[i], radius)

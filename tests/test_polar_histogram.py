@@ -7,7 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from uavform_env.polar_histogram import cell_index, histogram_shape, primary_histogram, weight_constants
+from uavform_env.polar_histogram import (cell_index, half_width, histogram_shape, primary_histogram, weight_constants,
+                                         width_steps)
 
 CELL = math.radians(5.0)
 P_MAX = 0.971
@@ -199,3 +200,21 @@ def test_bad_input_is_rejected(kwargs, match):
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
         primary_histogram(**args)
+
+
+@pytest.mark.parametrize("cell_deg", [5.0, 10.0, 15.0, 30.0])
+@pytest.mark.parametrize("paper_floor", [False, True])
+def test_width_steps_count_the_arcsine_half_width_exactly(cell_deg, paper_floor):
+    """The kernel counts steps instead of taking asin: the same half-width for every x, also next to each step."""
+    cell = math.radians(cell_deg)
+    steps = width_steps(cell, paper_floor)
+    assert np.all(np.diff(steps) > 0) and steps.size == half_width(1.0, cell, paper_floor)
+    rng = np.random.default_rng(0)
+    xs = np.concatenate([rng.uniform(0.0, 1.0, 20000), [0.0, 1.0], steps, np.nextafter(steps, 0.0),
+                         np.nextafter(steps, 2.0), np.sin(np.arange(1, steps.size + 1) * cell)])
+    xs = np.clip(xs, 0.0, 1.0)
+    expected = np.array([half_width(x, cell, paper_floor) for x in xs])
+    assert np.array_equal(np.searchsorted(steps, xs, side="right"), expected)
+    # the half-widths themselves: asin(0.5) / 5 deg = 6 exactly (within _SNAP), so x = 0.5 gives 6 in both modes
+    if cell_deg == 5.0:
+        assert half_width(0.5, cell, paper_floor) == 6

@@ -17,7 +17,7 @@ from gymnasium import spaces
 from .config import EnvConfig
 from .dynamics import PSI, VZ, W, V, Z
 from .occupancy import MapArrays, MapStore, occupied_cells, voxel_logodds
-from .polar_histogram import _primary_kernel, histogram_shape, weight_constants
+from .polar_histogram import _primary_kernel, histogram_shape, weight_constants, width_steps
 
 
 @dataclass(frozen=True)
@@ -73,7 +73,7 @@ class ObservationLayout:
             cell = math.radians(oc.histogram_cell_deg)
             r_e = u.r_uav + u.r_safe + cfg.map.resolution
             self._histogram = (float(oc.histogram_radius), float(r_e), cell, *histogram_shape(cell),
-                               *weight_constants(2.0, oc.histogram_radius, r_e))
+                               *weight_constants(2.0, oc.histogram_radius, r_e), width_steps(cell, False))
 
     def slice(self, name: str) -> slice:
         if name not in self._slices:
@@ -111,12 +111,12 @@ def build_observations(layout: ObservationLayout, cfg: EnvConfig, states: np.nda
                   oc.k_neighbours, float(oc.neighbour_range), float(u.v_max), float(u.w_max), float(u.vz_max),
                   float(u.z_min), float(u.z_max), float(oc.target_clip))
     if layout._histogram is not None:
-        radius, r_e, cell, n_e, n_z, a, b = layout._histogram
+        radius, r_e, cell, n_e, n_z, a, b, steps = layout._histogram
         h = np.zeros((n, n_e, n_z))
         leaves = maps.levels[0]
         _histograms(leaves.tables, leaves.values, leaves.bits, leaves.counts, leaves.key0, leaves.shape, maps.res,
                     np.ascontiguousarray(states[:, :3]), np.ascontiguousarray(states[:, PSI]), radius, r_e, cell, n_e,
-                    n_z, a, b, h)
+                    n_z, a, b, steps, h)
         out[:, layout.slice("obstacle_histogram")] = -np.expm1(-h.reshape(n, -1))
     if oc.include_crop:
         out[:, layout.slice("map_crop")] = map_crops(maps, states[:, :3], oc.crop_level, oc.crop_cells,
@@ -199,12 +199,14 @@ def _own_features(out, ego, tgt, role, nbr, states, targets, leader, broadcast, 
             out[i, col + 6] = 1.0
 
 @numba.njit(cache=True)
-def _histograms(tables, values, bits, counts, key0, shape, res, positions, psi, radius, r_e, cell, n_e, n_z, a, b, out):
-    """out[m] += the body-frame primary polar histogram of map m's occupied voxels within ``radius``."""
+def _histograms(tables, values, bits, counts, key0, shape, res, positions, psi, radius, r_e, cell, n_e, n_z, a, b,
+                steps, out):
+    """out[m] += the body-frame primary polar histogram (``ceil_2d``, ``steps`` its ``width_steps``) of map m's
+    occupied voxels within ``radius``."""
     for m in range(positions.shape[0]):
         centres, probs = occupied_cells(tables, values, bits, counts, m, key0, shape, res, positions[m], radius, False)
         _primary_kernel(centres, probs, np.full(probs.shape[0], r_e), positions[m], cell, n_e, n_z, radius, a, b,
-                        False, psi[m], out[m])
+                        False, steps, psi[m], out[m])
 
 
 def map_crops(maps: MapStore, centers: np.ndarray, level: int, cells: int, cells_z: int) -> np.ndarray:

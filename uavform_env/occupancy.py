@@ -49,7 +49,8 @@ CHUNK_BYTES = BLOCK_VOXELS * 4 + 8  # block entries and the owner entry
 # Deepest pyramid level: OctoMap's depth-1 nodes (tree depth 16; keys align up to 2**15, the root
 # straddles the origin and is not a level).
 MAX_LEVEL = 15
-_LAST_STAMP = 255  # scan stamps (uint8) run 1.._LAST_STAMP, then every stamp is zeroed and they restart
+_LAST_STAMP = 254  # scan stamps (uint8) run 1.._LAST_STAMP, then every stamp is zeroed and they restart
+_SETTLED = 255  # the stamp of a voxel at the clamping minimum l_min, which a miss leaves as it is (kept on wraps)
 _FIRST_CAPACITY = 1024  # pool blocks per map reserved up front (untouched pages cost no RSS); grows by half
 
 
@@ -587,7 +588,8 @@ def _integrate_maps(tables, values, bits, counts, owner, used, stamps, scan, dir
     """Integrate scan q into map indices[q] for q = start, ...; return the first q not done because the
     pools might run out during it (grow them and call again from there), or len(indices).
 
-    Each scan gets the next stamp ``scan[0]`` (1..255); when the stamps wrap, every voxel's is zeroed."""
+    Each scan gets the next stamp ``scan[0]`` (1.._LAST_STAMP); when the stamps wrap, every voxel's is zeroed
+    but _SETTLED ones (see ``_integrate_one``)."""
     inv_res = 1.0 / res
     n_rays = endpoints.shape[1]
     ends = np.empty((n_rays, 3))
@@ -607,7 +609,10 @@ def _integrate_maps(tables, values, bits, counts, owner, used, stamps, scan, dir
             return q
         scan[0] += 1
         if scan[0] > _LAST_STAMP:
-            stamps[:, :] = 0
+            flat = stamps.reshape(stamps.size)
+            for f in range(used[0] << (3 * BLOCK_SHIFT)):  # blocks allocated later get theirs zeroed
+                if flat[f] != _SETTLED:
+                    flat[f] = 0
             scan[0] = 1
         _integrate_one(tables, values, bits, counts, owner, used, stamps, np.uint8(scan[0]), dirty[indices[q]], key0,
                        shape, res, indices[q], ox, oy, oz, ends, hit[q], l_hit, l_miss, l_min, l_max, l_occ)
@@ -623,8 +628,9 @@ def _integrate_one(tables, values, bits, counts, owner, used, stamps, stamp, dir
     A voxel is updated at most once per scan: only if its stamp is not yet this scan's ``stamp``, which
     the update sets. The hit voxels go first (a hit beats a miss), then each ray walks its
     ``computeRayKeys`` voxels (``ray_setup``, ``ray_select``, ``ray_step``) and applies misses. A miss on a voxel
-    clamped at l_min changes nothing, so such voxels (free space missed in several earlier scans) are
-    passed over without touching their stamps. The walk keeps the last block looked
+    clamped at l_min changes nothing, so such voxels (free space missed in several earlier scans) carry
+    the stamp _SETTLED, set by the miss that clamped them and replaced by the next hit, and the walk passes
+    them over on that one byte. The walk keeps the last block looked
     up and resolves a block only when it enters one (the lookup is written out here: an inlined helper
     that may call ``_new_block`` costs refcounting on every voxel).
     """
@@ -649,8 +655,9 @@ def _integrate_one(tables, values, bits, counts, owner, used, stamps, stamp, dir
             bi, bj, bk = i >> BLOCK_SHIFT, j >> BLOCK_SHIFT, k >> BLOCK_SHIFT
             c = top[m, bi >> BLOCK_SHIFT, bj >> BLOCK_SHIFT, bk >> BLOCK_SHIFT]
             b = np.int64(chunks[c, _offset(bi, bj, bk)] if c >= 0 else -1)
-            if b < 0:  # a reused block's old stamps are older than this scan's (see _integrate_maps)
+            if b < 0:
                 b = _new_block(top, chunks, values, bits, counts, owner, used, m, bi, bj, bk)
+                stamps[b, :] = 0  # a reused block's may be _SETTLED
             f = (b << (3 * BLOCK_SHIFT)) | _offset(i, j, k)
             changed = True
             if flat_stamps[f] != stamp:
@@ -677,12 +684,14 @@ def _integrate_one(tables, values, bits, counts, owner, used, stamps, stamp, dir
                     b = np.int64(chunks[c, _offset(bi, bj, bk)] if c >= 0 else -1)
                     if b < 0:
                         b = _new_block(top, chunks, values, bits, counts, owner, used, m, bi, bj, bk)
+                        stamps[b, :] = 0
                     cbi, cbj, cbk, base = bi, bj, bk, b << (3 * BLOCK_SHIFT)
                 f = np.uint64(base | _offset(i, j, k))  # unsigned: no negative-index wrap in the loads
                 changed = True
-                if flat_values[f] != l_min and flat_stamps[f] != stamp:
-                    flat_stamps[f] = stamp
+                old = flat_stamps[f]
+                if old != stamp and old != _SETTLED:
                     _update_voxel(flat_values, flat_bits, counts, f, l_miss, l_min, l_max, l_occ)
+                    flat_stamps[f] = _SETTLED if flat_values[f] == l_min else stamp
             i, j, k, tx, ty, tz = ray_step(i, j, k, sx, sy, sz, tx, ty, tz, ddx, ddy, ddz, on_x, on_y, on_z)
             on_x, on_y, on_z, t = ray_select(tx, ty, tz)  # t = min(tx, ty, tz)
             if ((i == ei) & (j == ej) & (k == ek)) | (t > length):

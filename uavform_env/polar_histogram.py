@@ -80,6 +80,47 @@ def cell_index(dx, dy, dz, cell, n_e, n_z, azimuth_ref):
     return row, column
 
 
+@numba.njit(cache=True)
+def half_width(x, cell, paper_floor):
+    """Half-width in cells of the window of a voxel seen under the half-angle asin(x), x = r_e / distance in
+    [0, 1]: ceil(asin(x) / cell) (``ceil_2d``) or the paper's floor (``paper_floor``), both within _SNAP."""
+    w = math.asin(x) / cell
+    return int(math.floor(w + _SNAP)) if paper_floor else int(math.ceil(w - _SNAP))
+
+
+@functools.lru_cache(maxsize=8)
+def width_steps(cell: float, paper_floor: bool) -> np.ndarray:
+    """The smallest x in [0, 1] at which ``half_width(x, cell, paper_floor)`` reaches 1, 2, ...
+
+    ``half_width`` never decreases with x (asin, the division, the rounding and the floor or ceil all keep
+    the order), so ``half_width(x)`` is exactly the number of these steps <= x: the histogram kernel counts
+    them instead of taking an arcsine per voxel. Found by bisection over the floats' bit patterns."""
+    histogram_shape(cell)
+    steps = np.empty(half_width(1.0, cell, paper_floor))
+    lo_all = np.float64(0.0).view(np.int64)
+    for n in range(1, steps.size + 1):
+        lo, hi = lo_all, np.float64(1.0).view(np.int64)  # half_width(lo) < n <= half_width(hi)
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if half_width(np.int64(mid).view(np.float64), cell, paper_floor) >= n:
+                hi = mid
+            else:
+                lo = mid
+        steps[n - 1] = np.int64(hi).view(np.float64)
+        lo_all = lo
+    steps.flags.writeable = False
+    return steps
+
+
+@numba.njit(cache=True, inline="always")
+def _count_steps(steps, x):
+    """``half_width(x)`` from its ``width_steps``."""
+    n = 0
+    while n < steps.shape[0] and x >= steps[n]:
+        n += 1
+    return n
+
+
 @functools.lru_cache(maxsize=8)
 def cell_geometry(cell: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Cell-centre elevations (N_e,), azimuths (N_z,) from column 0, and unit vectors (N_e, N_z, 3)."""
@@ -95,8 +136,9 @@ def cell_geometry(cell: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 @numba.njit(cache=True)
-def _primary_kernel(centres, probs, r_e, pos, cell, n_e, n_z, R_w, a, b, paper_floor, azimuth_ref, hist):
-    """Accumulate every active voxel's weight over its enlarged cell window; return the emergency flag."""
+def _primary_kernel(centres, probs, r_e, pos, cell, n_e, n_z, R_w, a, b, paper_floor, steps, azimuth_ref, hist):
+    """Accumulate every active voxel's weight over its enlarged cell window; return the emergency flag.
+    ``steps`` = ``width_steps(cell, paper_floor)``."""
     emergency = False
     flat = hist.reshape(-1)  # flat row-major indexing is about twice as fast in the inner loop
     n_z_u = np.uint64(n_z)
@@ -115,13 +157,8 @@ def _primary_kernel(centres, probs, r_e, pos, cell, n_e, n_z, R_w, a, b, paper_f
             emergency = True
         ph = math.sqrt(dx * dx + dy * dy)
         be, bz = cell_index(dx, dy, dz, cell, n_e, n_z, azimuth_ref)
-        half_e = math.asin(min(1.0, re / d)) / cell if d > 0.0 else 0.5 * math.pi / cell
-        if paper_floor:
-            lam_e = int(math.floor(half_e + _SNAP))
-            lam_z = lam_e
-        else:
-            lam_e = int(math.ceil(half_e - _SNAP))
-            lam_z = int(math.ceil(math.asin(min(1.0, re / max(ph, re))) / cell - _SNAP))
+        lam_e = _count_steps(steps, min(1.0, re / d) if d > 0.0 else 1.0)  # asin(1) = pi / 2 exactly
+        lam_z = lam_e if paper_floor else _count_steps(steps, min(1.0, re / max(ph, re)))
         h = o * o * (a - b * max(0.0, d - re))
         # Columns bz - lam_z .. bz + lam_z as up to two unwrapped runs; lam_z <= N_e/2 = N_z/4,
         # so the run never covers a column twice. The indices are unsigned: numba then skips its
@@ -177,7 +214,8 @@ def primary_histogram(centres, probs, r_e, pos, cell: float, R_w: float, a: floa
     if not R_w > 0.0:
         raise ValueError(f"R_w={R_w!r}: expected a positive radius")
     hist = np.zeros((n_e, n_z))
+    paper_floor = enlarge_mode == "paper_floor"
     emergency = _primary_kernel(centres, probs, np.ascontiguousarray(r_e_arr), pos, float(cell), n_e, n_z,
-                                float(R_w), float(a), float(b), enlarge_mode == "paper_floor",
+                                float(R_w), float(a), float(b), paper_floor, width_steps(float(cell), paper_floor),
                                 float(azimuth_ref), hist)
     return hist, bool(emergency)
