@@ -147,8 +147,9 @@ class ExpertConfig(Config):
                        (``rules.wind_estimate``: observed minus commanded motion) [X]
     gust_tau           time constant (s) of the mean square of the UAV's drift (``rules.gust_speed``, its root: the
                        drift speed gusts cause, which the wind margins scale with) [X]
-    wind_margin        DWA's obstacle voxels grow by ``wind_margin`` (s) x the RMS drift, at most half the UAV's
-                       current clearance (a UAV the gusts carried inside its margin can still hold or leave) [X]
+    wind_margin        DWA's obstacle voxels grow by ``wind_margin`` (s) x the RMS drift (less ``gust_allowance``), at
+                       most half the UAV's current clearance (a UAV the gusts carried inside its margin can still
+                       hold or leave) [X]
     wind_drift         DWA's rollouts drift with the estimated wind (``dwa_plan(drift=...)``) times the share of it
                        the autopilot leaves over the horizon (``rules.drift_persistence``): a sample that holds
                        still while the wind carries the UAV into an obstacle is inadmissible [X]
