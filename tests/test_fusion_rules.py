@@ -11,8 +11,8 @@ from baselines.dwa import dwa_plan
 from baselines.fusion import ExpertConfig, FusionExpert
 from baselines.fusion.controller import _UAVMemory
 from baselines.fusion.rules import (RULES, Command, Cycle, braking_fallback, dock_approach, dock_turn, drift_guard,
-                                    drift_persistence, emergency_escape, gust_speed, reverse_turn, station_keep,
-                                    vertical_separation, wind_estimate)
+                                    drift_persistence, emergency_escape, gust_speed, gust_standoff, reverse_turn,
+                                    station_keep, vertical_separation, wind_estimate)
 from baselines.vfh3d import VFHPlanner
 from uavform_env import EnvConfig, parallel_env
 
@@ -358,7 +358,7 @@ def test_drift_guard_clearance_grows_with_the_gust_speed():
     gusty = _UAVMemory(drift_ms=0.25)                              # RMS drift 0.5 m/s
     near = dict(admissible=False, obstacles=[[-0.9, 0.0, 3.0]], radius=0.1)   # 0.5 m clearance, behind
     off = ExpertConfig(guard_gust_time=0.0, guard_hover_speed=0.0)
-    cfg = ExpertConfig(guard_gust_time=1.0, guard_hover_speed=0.1)  # guard clearance 0.4 + 1.0 x 0.5 = 0.9 m
+    cfg = ExpertConfig(guard_gust_time=1.0, guard_hover_speed=0.1, gust_allowance=0.0)   # 0.4 + 1.0 x 0.5 = 0.9 m
     still = Command(0.0, 0.0, 0.0)
     drift_guard(still, cycle(view(), gusty, cfg=off, **near))      # without: 0.5 m >= 0.4 m, it brakes as before
     assert (still.v, still.w) == (0.0, 0.0)
@@ -373,7 +373,7 @@ def test_drift_guard_clearance_grows_with_the_gust_speed():
 def test_drift_guard_moves_a_hovering_uav_off_an_obstacle_in_gusts_even_when_dwa_finds_a_way():
     gusty = _UAVMemory(drift_ms=0.25)                              # RMS drift 0.5 m/s: gust standoff 0.5 m
     near = dict(admissible=True, obstacles=[[-0.8, 0.0, 3.0]], radius=0.1)   # 0.4 m clearance, behind
-    cfg = ExpertConfig(guard_gust_time=1.0, guard_hover_speed=0.1)
+    cfg = ExpertConfig(guard_gust_time=1.0, guard_hover_speed=0.1, gust_allowance=0.0)
     hover = Command(0.0, W_MAX, 0.0)                               # DWA: turn in place
     drift_guard(hover, cycle(view(), gusty, cfg=cfg, **near))
     assert hover.v == pytest.approx(cfg.guard_speed) and hover.w == 0.0
@@ -386,3 +386,66 @@ def test_drift_guard_moves_a_hovering_uav_off_an_obstacle_in_gusts_even_when_dwa
     calm = Command(0.0, W_MAX, 0.0)
     drift_guard(calm, cycle(view(), _UAVMemory(), cfg=cfg, **near))    # still air: no gust standoff
     assert (calm.v, calm.w) == (0.0, W_MAX)
+
+
+def test_gust_standoff_leaves_out_what_r_safe_covers():
+    """``gust_allowance``: time x RMS drift less gust_allowance x r_safe (0.2 m), never below 0."""
+    breeze, gusty, still = _UAVMemory(drift_ms=0.16 ** 2), _UAVMemory(drift_ms=0.6 ** 2), _UAVMemory()
+    assert gust_standoff(breeze, CFG, 3.0, LIM.r_safe) == pytest.approx(3.0 * 0.16 - 0.2)       # 0.28 m
+    assert gust_standoff(breeze, CFG, 1.0, LIM.r_safe) == 0.0                                   # 0.16 m < 0.2 m
+    assert gust_standoff(gusty, CFG, 1.0, LIM.r_safe) == pytest.approx(0.6 - 0.2)
+    assert gust_standoff(still, CFG, 3.0, LIM.r_safe) == 0.0
+    whole = ExpertConfig(gust_allowance=0.0)                                # the margins before (session 8)
+    assert gust_standoff(breeze, whole, 3.0, LIM.r_safe) == pytest.approx(0.48)
+    half = ExpertConfig(gust_allowance=0.5)
+    assert gust_standoff(breeze, half, 3.0, LIM.r_safe) == pytest.approx(0.48 - 0.1)
+    with pytest.raises(ValueError, match="gust_allowance"):
+        ExpertConfig(gust_allowance=-0.1)
+
+
+def test_drift_guard_leaves_a_hovering_uav_in_a_breeze_to_dwa_where_r_safe_covers_the_drift():
+    """A UAV turning in place 0.4 m from a wall in a breeze (RMS drift 0.16 m/s): the gust standoff 3 s x 0.16 = 0.48 m
+    less r_safe is 0.28 m, so DWA's turn stands; without the allowance (0.48 m) the guard flew it off the wall (wall-gap
+    v1-dev s200119 breeze: 425 such overrides, the leader never turned into the gap)."""
+    breeze = _UAVMemory(drift_ms=0.16 ** 2)
+    near = dict(admissible=True, obstacles=[[-0.8, 0.0, 3.0]], radius=0.1)   # 0.4 m clearance, behind
+    turn = Command(0.0, W_MAX, 0.0)
+    drift_guard(turn, cycle(view(), breeze, cfg=CFG, **near))
+    assert (turn.v, turn.w) == (0.0, W_MAX)
+    before = Command(0.0, W_MAX, 0.0)
+    drift_guard(before, cycle(view(), breeze, cfg=ExpertConfig(gust_allowance=0.0), **near))
+    assert before.v == pytest.approx(CFG.guard_speed) and before.w == 0.0
+    closer = Command(0.0, W_MAX, 0.0)                                      # 0.2 m: inside 0.28 m, still guarded
+    drift_guard(closer, cycle(view(), breeze, cfg=CFG, **{**near, "obstacles": [[-0.6, 0.0, 3.0]]}))
+    assert closer.v == pytest.approx(CFG.guard_speed) and closer.w == 0.0
+
+
+def test_dwa_wind_margin_in_a_breeze_is_what_r_safe_does_not_cover():
+    """``gust_allowance`` in DWA's obstacle radii: in a breeze (RMS drift ~0.16 m/s, below r_safe / wind_margin =
+    0.2 m/s) the voxels keep their own radius; with the allowance off they grew by wind_margin x the RMS drift (at
+    most half the clearance). Every DWA call of a 40-step, 3-UAV forest flight is checked."""
+    def margins(cfg):
+        seen = []
+
+        def capturing_dwa(state, limits, dwa_cfg, goal, obstacles, radii, **kwargs):
+            own = radii[radii > 0.0]                                    # voxels (the fence points have radius 0)
+            if len(own):
+                seen.append((float(own.max() - own.min()), float(own.min()), kwargs["clearance_now"]))
+            return dwa_plan(state, limits, dwa_cfg, goal, obstacles, radii, **kwargs)
+
+        expert = FusionExpert(cfg, dwa=capturing_dwa)
+        penv = parallel_env(scenario="forest", n_uavs=3, formation="triangle", max_cycles=40, disturbance="breeze")
+        obs, _ = penv.reset(seed=4)
+        expert.reset(penv, seed=4)
+        while penv.agents:
+            obs, *_ = penv.step(expert.act(obs, penv))
+        gusts = [gust_speed(m) for m in expert.memory.values()]
+        return np.array(seen), gusts
+
+    voxel = 0.2 * math.sqrt(3.0) / 2.0
+    now, gusts = margins(CFG)
+    assert len(now) > 40 and max(gusts) * CFG.wind_margin < LIM.r_safe
+    assert np.allclose(now[:, 1], voxel) and np.all(now[:, 0] == 0.0)             # no margin at all
+    before, _ = margins(ExpertConfig(gust_allowance=0.0))
+    grown = before[:, 1] - voxel
+    assert grown.max() > 0.05 and np.all(grown <= 0.5 * np.maximum(before[:, 2], 0.0) + 1e-12)

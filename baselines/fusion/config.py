@@ -147,8 +147,9 @@ class ExpertConfig(Config):
                        (``rules.wind_estimate``: observed minus commanded motion) [X]
     gust_tau           time constant (s) of the mean square of the UAV's drift (``rules.gust_speed``, its root: the
                        drift speed gusts cause, which the wind margins scale with) [X]
-    wind_margin        DWA's obstacle voxels grow by ``wind_margin`` (s) x the RMS drift, at most half the UAV's
-                       current clearance (a UAV the gusts carried inside its margin can still hold or leave) [X]
+    wind_margin        DWA's obstacle voxels grow by ``wind_margin`` (s) x the RMS drift (less ``gust_allowance``), at
+                       most half the UAV's current clearance (a UAV the gusts carried inside its margin can still
+                       hold or leave) [X]
     wind_drift         DWA's rollouts drift with the estimated wind (``dwa_plan(drift=...)``) times the share of it
                        the autopilot leaves over the horizon (``rules.drift_persistence``): a sample that holds
                        still while the wind carries the UAV into an obstacle is inadmissible [X]
@@ -177,6 +178,12 @@ class ExpertConfig(Config):
     guard_gust_time    ``rules.drift_guard``'s clearance (``guard_clearance``) grows by ``guard_gust_time`` (s) x
                        the RMS drift (``rules.gust_speed``): gust bursts of 2-3 times the RMS drift carried UAVs braking
                        0.5-1 m from a tree or wall into it before a 20 deg/s turn could point them away [X]
+    gust_allowance     the gust margins (``wind_margin`` in DWA's obstacle radii, ``guard_gust_time`` in
+                       ``rules.drift_guard``'s standoff) leave out this share of r_safe, which every clearance keeps
+                       already (``rules.gust_standoff``: time x RMS drift - gust_allowance x r_safe, at least 0): a
+                       breeze's RMS drift (~0.16 m/s) added 0.16 m to every voxel and a 0.48 m hover standoff on top
+                       of r_safe, and the guard flew a leader turning into a wall's gap off the wall 425 times until
+                       time-out (wall-gap v1-dev s200119 breeze); gusty drifts (~0.6 m/s) keep most of theirs [X]
     guard_hover_speed  a UAV slower than this, within ``guard_gust_time`` x the RMS drift of an obstacle point beside
                        it, flies away from it (``rules.drift_guard``) even when DWA has admissible samples: DWA
                        chose to turn in place at v = 0, and the gusts carried the stopped UAV into the obstacle
@@ -281,6 +288,8 @@ class ExpertConfig(Config):
     lateral_emergency_to_dwa: bool = True
     # the passable raster: free evidence of a way (s8maze: classic-2d "extended" under noisy, issue 13)
     way_misses: int = 4
+    # -- breeze (issue 13, session 9 "s9breeze"): gust margins count only what r_safe does not already cover
+    gust_allowance: float = 1.0
 
     BOUNDS: ClassVar[dict] = {
         "dwa": instance_of(DWAConfig), "vfh": instance_of(VFHConfig), "astar": instance_of(AStarConfig),
@@ -304,7 +313,8 @@ class ExpertConfig(Config):
                                             "hold_drift_time", "hold_search", "glide_slope", "wind_margin", "vane_wind",
                                             "approach_radius", "guard_clearance", "guard_speed", "guard_gust_time",
                                             "guard_hover_speed", "path_margin",
-                                            "margin_detour", "repark_time", "repark_radius")},
+                                            "margin_detour", "repark_time", "repark_radius",
+                                            "gust_allowance")},
         **{name: in_range(0.0, lo_open=True) for name in ("wind_tau", "gust_tau")},
         "leader_speed_cap": in_range(0.0, 1.0, lo_open=True),
         "yield_factor": in_range(0.0, 1.0),

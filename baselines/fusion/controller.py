@@ -32,8 +32,8 @@ from ..vfh3d import VFHPlanner
 from .config import ExpertConfig
 from .kernels import (closest_approach_of, columns_without_gap, gap_altitude_kernel, in_sphere, live_within,
                       mark_cells, open_level_way, predicted_movers, segment_clear, surface_clearance)
-from .rules import (RULES, Command, Cycle, bearing_error, clamp, drift_persistence, gust_speed, leader_parked,
-                    station_keep, wind_estimate)
+from .rules import (RULES, Command, Cycle, bearing_error, clamp, drift_persistence, gust_speed, gust_standoff,
+                    leader_parked, station_keep, wind_estimate)
 
 
 @dataclass
@@ -334,7 +334,8 @@ class FusionExpert(OnboardPolicy):
         fence = geofence_points(pos, local.reach, view.bounds_lo, view.bounds_hi, cfg.geofence_spacing)
         # the wind margin, never more than half the clearance the UAV has: a UAV the gusts carried inside it can
         # still hold or leave (every sample would otherwise be inadmissible, and it would brake where it is)
-        radii = np.full(len(obstacles), radius + min(cfg.wind_margin * gust_speed(mem), 0.5 * max(0.0, clearance_now)))
+        margin = gust_standoff(mem, cfg, cfg.wind_margin, lim.r_safe)
+        radii = np.full(len(obstacles), radius + min(margin, 0.5 * max(0.0, clearance_now)))
         if len(fence):
             obstacles = np.concatenate([obstacles, fence])
             radii = np.concatenate([radii, np.zeros(len(fence))])          # the fence points have radius 0

@@ -134,11 +134,12 @@ def drift_guard(cmd: Command, c: Cycle) -> None:
     bearing error (0 beyond 90 degrees). A point more above or
     below than beside is the emergency escape's case (g5).
     [X] ``guard_gust_time``, ``guard_hover_speed``: in gusts the guard's clearance grows by ``guard_gust_time`` x the
-    RMS drift (``gust_speed``); a UAV slower than ``guard_hover_speed`` within that gust standoff alone is guarded
-    even when DWA has admissible samples (a UAV DWA turns in place at v = 0 cannot dodge the next gust)."""
+    RMS drift (``gust_speed``), less what r_safe covers (``gust_standoff``); a UAV slower than ``guard_hover_speed``
+    within that gust standoff alone is guarded even when DWA has admissible samples (a UAV DWA turns in place at
+    v = 0 cannot dodge the next gust)."""
     cfg, view = c.cfg, c.view
     s, lim = view.state, view.limits
-    standoff = cfg.guard_gust_time * gust_speed(c.mem)
+    standoff = gust_standoff(c.mem, cfg, cfg.guard_gust_time, lim.r_safe)
     if not c.dwa.admissible:
         reach = cfg.guard_clearance + standoff
     else:                                       # DWA found a way: only a hovering UAV within the gust standoff
@@ -275,6 +276,14 @@ def gust_speed(mem) -> float:
     """The UAV's typical drift speed (m/s): the root mean square of its drift over ``gust_tau`` (``wind_estimate``).
     Under gusts the drift changes faster than ``mem.wind`` follows; this is what a wind margin must cover."""
     return math.sqrt(mem.drift_ms)
+
+
+def gust_standoff(mem, cfg, time: float, r_safe: float) -> float:
+    """[X] ``gust_allowance`` (issue 13, breeze): the distance (m) a gust margin adds to a UAV's clearance: ``time`` (s)
+    x the RMS drift (``gust_speed``), less the share ``gust_allowance`` of the safety radius ``r_safe`` that every
+    clearance already keeps (never below 0). A breeze's drift (RMS ~0.16 m/s) then adds nothing where r_safe covers
+    it, while a gusty drift (~0.6 m/s) keeps nearly all of its margin."""
+    return max(0.0, time * gust_speed(mem) - cfg.gust_allowance * r_safe)
 
 
 # ---------------------------------------------------------------------- helpers (the controller uses them too)
