@@ -48,6 +48,7 @@ class _UAVMemory(PlannerMemory):
     last_check_time: float = -1e9
     trail: list = field(default_factory=list)
     trail_progress: int = 0
+    pace_trail: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
     arrived: bool = False
     park_psi: float | None = None
     park_marks: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
@@ -402,12 +403,33 @@ class FusionExpert(OnboardPolicy):
         heading_target = cfg.astar.heading_target
         to_lookahead = heading_target == "lookahead" or (heading_target == "visible_goal" and not mem.goal_visible)
         goal = lookahead if to_lookahead else view.goal[:2]
-        errors = _follower_errors(view)
+        errors = self._pace_errors(view, mem, cfg)
         scale = 1.0
         if errors.size:
             mean_err = float(np.add.reduce(errors) / errors.size)           # np.mean's sum and division
             scale = clamp(1.0 - (mean_err - cfg.e0) / (cfg.e1 - cfg.e0), cfg.min_leader_scale, 1.0)
         return goal, lookahead, cfg.leader_speed_cap * lim.v_max * scale, None
+
+    @staticmethod
+    def _pace_errors(view, mem: _UAVMemory, cfg: ExpertConfig) -> np.ndarray:
+        """The followers' lags that pace the leader (``leader_pace``): their slot errors (``"slot"``), or each the
+        smaller of its slot error and its lag along the leader's own trail (``"trail"``, ``trail_lags``; the trail
+        kept as points ``trail_spacing`` apart, the last ``trail_window`` of them)."""
+        errors = _follower_errors(view)
+        if cfg.leader_pace != "trail":
+            return errors
+        pos = view.state[:2]
+        trail = mem.pace_trail
+        if not len(trail) or math.hypot(pos[0] - trail[-1, 0], pos[1] - trail[-1, 1]) >= cfg.trail_spacing:
+            mem.pace_trail = trail = np.concatenate([trail[max(0, len(trail) + 1 - cfg.trail_window):], pos[None]])
+        if not errors.size:
+            return errors
+        ids = view.neighbour_ids[view.neighbour_alive]
+        offsets = view.offsets[ids, :2]
+        column = _column_offsets(view.offsets, view.config.formation.spacing)[ids, :2]
+        allowed = np.maximum(np.linalg.norm(offsets, axis=1), np.linalg.norm(column, axis=1))
+        lags = trail_lags(trail, pos, view.neighbour_states[view.neighbour_alive, :2], allowed)
+        return np.minimum(errors, lags)
 
     def _guidance(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float, goal_xy: np.ndarray):
         """A* lookahead point toward ``goal_xy`` on this UAV's own map, replanned on the (d5) triggers.
@@ -749,6 +771,21 @@ def _follower_errors(view) -> np.ndarray:
     slots = s[:2] + _rotated(s[PSI], view.offsets[view.neighbour_ids])
     alive = view.neighbour_alive
     return np.linalg.norm(view.neighbour_states[alive, :2] - slots[alive], axis=1)
+
+
+def trail_lags(trail: np.ndarray, leader_xy: np.ndarray, followers_xy: np.ndarray, allowed: np.ndarray) -> np.ndarray:
+    """[X] ``leader_pace="trail"``: each follower's lag along the leader's trail (points (M, 2), oldest first, the
+    leader at ``leader_xy`` past the last): its distance to the nearest trail point plus how much farther than
+    ``allowed`` (K,) that point lies behind the leader along the trail. A follower trailing through a door on the
+    leader's own way lags by nothing while its slot, swung round the bend with the leader's heading, is metres off;
+    one held behind an obstacle, off the trail or far back along it, still lags."""
+    steps = np.sqrt(np.add.reduce(np.diff(trail, axis=0) ** 2, axis=1))
+    arc = np.concatenate([np.zeros(1), np.cumsum(steps)])
+    to_leader = arc[-1] + math.hypot(leader_xy[0] - trail[-1, 0], leader_xy[1] - trail[-1, 1])
+    d2 = np.add.reduce((followers_xy[:, None, :] - trail[None, :, :]) ** 2, axis=2)
+    nearest = np.argmin(d2, axis=1)
+    off = np.sqrt(d2[np.arange(len(nearest)), nearest])
+    return off + np.maximum(0.0, to_leader - arc[nearest] - allowed)
 
 
 def _slot_brake_cap(v_leader: float, distance: float, a_max: float) -> float:
