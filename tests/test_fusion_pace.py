@@ -20,24 +20,35 @@ def straight_trail(length: float = 10.0, spacing: float = 0.25) -> np.ndarray:
 @pytest.mark.parametrize("follower, allowed, lag", [
     ((8.0, 0.0), 2.0, 0.0),          # on the trail, within its slot's range behind the leader
     ((4.0, 0.0), 2.0, 4.0),          # on the trail, 6 m behind: 4 m more than its 2 m
-    ((4.0, 3.0), 2.0, 7.0),          # 3 m off the trail beside that point: 3 + 4
+    ((4.0, 3.0), 2.0, 5.0),          # 3 m off it: 5 m to (8, 0), 2 m behind (the least of distance + excess)
     ((-2.0, 0.0), 2.0, 10.0),        # behind the trail's start: 2 m to its first point, 10 m back: 2 + 8
     ((11.0, 0.0), 2.0, 1.0),         # ahead of the leader: its distance to the newest point
     ((5.0, 0.0), 20.0, 0.0),         # a slot range longer than the trail
 ])
-def test_trail_lag_is_distance_to_the_trail_plus_how_far_behind_beyond_its_slot_range(follower, allowed, lag):
+def test_trail_lag_is_the_least_distance_to_a_trail_point_plus_how_far_it_lies_behind_beyond_the_slot_range(follower, allowed, lag):
     lags = trail_lags(straight_trail(), np.array([10.0, 0.0]), np.array([follower], dtype=float), np.array([allowed]))
     assert lags == pytest.approx([lag])
 
 
-def test_trail_lag_counts_the_arc_round_a_bend_not_the_straight_line():
-    """An L-shaped trail: (0, 0) -> (5, 0) -> (5, 5), leader at (5, 5). A follower at (1, 0) is 4.1 m from the
-    leader in a straight line but 9 m back along the trail."""
+def test_trail_lag_follows_the_trail_round_a_bend():
+    """An L-shaped trail: (0, 0) -> (5, 0) -> (5, 5), leader at (5, 5), slot range 2 m. A follower at (1, 0), 9 m
+    back along the trail, lags 5 m: its distance to (5, 3), 2 m behind the leader; one at (5, 2) lags 1 m."""
     leg1 = np.column_stack([np.arange(0.0, 5.0, 0.25), np.zeros(20)])
     leg2 = np.column_stack([np.full(21, 5.0), np.arange(0.0, 5.0 + 1e-9, 0.25)])
     trail = np.vstack([leg1, leg2])
     lags = trail_lags(trail, np.array([5.0, 5.0]), np.array([[1.0, 0.0], [5.0, 2.0]]), np.array([2.0, 2.0]))
-    assert lags == pytest.approx([7.0, 1.0])
+    assert lags == pytest.approx([5.0, 1.0])
+
+
+def test_where_the_leader_turned_back_along_its_trail_the_newer_points_count():
+    """The leader flew east from (0, 0) to (10, 0) and back west to (5.75, 0). A follower at (7, 0) lies 1.25 m
+    behind it on the way back (not 11.25 m on the way out): no lag; one at (2, 0) lags 4 m, its distance to the
+    trail's newest point, (6, 0)."""
+    out = np.column_stack([np.arange(0.0, 10.0 + 1e-9, 0.25), np.zeros(41)])
+    back = np.column_stack([np.arange(9.75, 6.0 - 1e-9, -0.25), np.zeros(16)])
+    lags = trail_lags(np.vstack([out, back]), np.array([5.75, 0.0]), np.array([[7.0, 0.0], [2.0, 0.0]]),
+                      np.array([2.0, 2.0]))
+    assert lags == pytest.approx([0.0, 4.0])
 
 
 def pace_view(followers_xy, leader_x: float, leader_psi: float):

@@ -413,8 +413,8 @@ class FusionExpert(OnboardPolicy):
     @staticmethod
     def _pace_errors(view, mem: _UAVMemory, cfg: ExpertConfig) -> np.ndarray:
         """The followers' lags that pace the leader (``leader_pace``): their slot errors (``"slot"``), or each the
-        smaller of its slot error and its lag along the leader's own trail (``"trail"``, ``trail_lags``; the trail
-        kept as points ``trail_spacing`` apart, the last ``trail_window`` of them)."""
+        smaller of its slot error and its lag along the leader's own trail beyond its slot's range (``"trail"``,
+        ``trail_lags``; the trail kept as points ``trail_spacing`` apart, the last ``trail_window`` of them)."""
         errors = _follower_errors(view)
         if cfg.leader_pace != "trail":
             return errors
@@ -424,11 +424,9 @@ class FusionExpert(OnboardPolicy):
             mem.pace_trail = trail = np.concatenate([trail[max(0, len(trail) + 1 - cfg.trail_window):], pos[None]])
         if not errors.size:
             return errors
-        ids = view.neighbour_ids[view.neighbour_alive]
-        offsets = view.offsets[ids, :2]
-        column = _column_offsets(view.offsets, view.config.formation.spacing)[ids, :2]
-        allowed = np.maximum(np.linalg.norm(offsets, axis=1), np.linalg.norm(column, axis=1))
-        lags = trail_lags(trail, pos, view.neighbour_states[view.neighbour_alive, :2], allowed)
+        alive = view.neighbour_alive
+        allowed = np.linalg.norm(view.offsets[view.neighbour_ids[alive], :2], axis=1)
+        lags = trail_lags(trail, pos, view.neighbour_states[alive, :2], allowed)
         return np.minimum(errors, lags)
 
     def _guidance(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float, goal_xy: np.ndarray):
@@ -775,17 +773,16 @@ def _follower_errors(view) -> np.ndarray:
 
 def trail_lags(trail: np.ndarray, leader_xy: np.ndarray, followers_xy: np.ndarray, allowed: np.ndarray) -> np.ndarray:
     """[X] ``leader_pace="trail"``: each follower's lag along the leader's trail (points (M, 2), oldest first, the
-    leader at ``leader_xy`` past the last): its distance to the nearest trail point plus how much farther than
-    ``allowed`` (K,) that point lies behind the leader along the trail. A follower trailing through a door on the
-    leader's own way lags by nothing while its slot, swung round the bend with the leader's heading, is metres off;
-    one held behind an obstacle, off the trail or far back along it, still lags."""
+    leader at ``leader_xy`` past the last): the least, over the trail's points, of its distance to the point plus
+    how much farther than ``allowed`` (K,) the point lies behind the leader along the trail. A follower trailing
+    through a door on the leader's own way lags by nothing while its slot, swung round the bend with the leader's
+    heading, is metres off; one held behind an obstacle, off the trail or far back along it, still lags; where the
+    leader turned back along its own trail, the newer points count."""
     steps = np.sqrt(np.add.reduce(np.diff(trail, axis=0) ** 2, axis=1))
     arc = np.concatenate([np.zeros(1), np.cumsum(steps)])
-    to_leader = arc[-1] + math.hypot(leader_xy[0] - trail[-1, 0], leader_xy[1] - trail[-1, 1])
-    d2 = np.add.reduce((followers_xy[:, None, :] - trail[None, :, :]) ** 2, axis=2)
-    nearest = np.argmin(d2, axis=1)
-    off = np.sqrt(d2[np.arange(len(nearest)), nearest])
-    return off + np.maximum(0.0, to_leader - arc[nearest] - allowed)
+    behind = arc[-1] + math.hypot(leader_xy[0] - trail[-1, 0], leader_xy[1] - trail[-1, 1]) - arc
+    off = np.sqrt(np.add.reduce((followers_xy[:, None, :] - trail[None, :, :]) ** 2, axis=2))
+    return np.min(off + np.maximum(0.0, behind[None, :] - allowed[:, None]), axis=1)
 
 
 def _slot_brake_cap(v_leader: float, distance: float, a_max: float) -> float:
