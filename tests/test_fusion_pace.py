@@ -1,5 +1,5 @@
 """The leader's pace (``ExpertConfig.leader_pace``): followers trailing it round a bend on its own way are not lag;
-followers off its way or far back along it are (``controller.trail_lags``)."""
+followers off its way or far back along it are (``kernels.trail_lags``)."""
 
 import math
 from dataclasses import replace
@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from baselines.expert import ExpertConfig, FusionExpert
-from baselines.fusion.controller import _UAVMemory, trail_lags
+from baselines.fusion.controller import _UAVMemory
+from baselines.fusion.kernels import trail_lags
 
 
 def straight_trail(length: float = 10.0, spacing: float = 0.25) -> np.ndarray:
@@ -25,7 +26,7 @@ def straight_trail(length: float = 10.0, spacing: float = 0.25) -> np.ndarray:
     ((11.0, 0.0), 2.0, 1.0),         # ahead of the leader: its distance to the newest point
     ((5.0, 0.0), 20.0, 0.0),         # a slot range longer than the trail
 ])
-def test_trail_lag_is_the_least_distance_to_a_trail_point_plus_how_far_it_lies_behind_beyond_the_slot_range(follower, allowed, lag):
+def test_trail_lag_is_least_distance_to_a_trail_point_plus_its_excess_behind_the_slot_range(follower, allowed, lag):
     lags = trail_lags(straight_trail(), np.array([10.0, 0.0]), np.array([follower], dtype=float), np.array([allowed]))
     assert lags == pytest.approx([lag])
 
@@ -49,6 +50,17 @@ def test_where_the_leader_turned_back_along_its_trail_the_newer_points_count():
     lags = trail_lags(np.vstack([out, back]), np.array([5.75, 0.0]), np.array([[7.0, 0.0], [2.0, 0.0]]),
                       np.array([2.0, 2.0]))
     assert lags == pytest.approx([0.0, 4.0])
+
+
+def test_trail_lags_match_the_brute_force_formula_on_a_random_walk():
+    rng = np.random.default_rng(3)
+    trail = np.cumsum(rng.normal(0.0, 0.25, (300, 2)), axis=0)
+    leader, followers, allowed = trail[-1] + 0.1, rng.uniform(-8.0, 8.0, (9, 2)), rng.uniform(0.0, 6.0, 9)
+    steps = np.r_[0.0, np.linalg.norm(np.diff(trail, axis=0), axis=1)]
+    behind = np.linalg.norm(leader - trail[-1]) + (steps.sum() - np.cumsum(steps))
+    off = np.linalg.norm(followers[:, None] - trail[None], axis=2)
+    expected = (off + np.maximum(0.0, behind[None] - allowed[:, None])).min(axis=1)
+    assert trail_lags(trail, leader, followers, allowed) == pytest.approx(expected, rel=1e-12, abs=1e-12)
 
 
 def pace_view(followers_xy, leader_x: float, leader_psi: float):

@@ -176,12 +176,12 @@ class ExpertConfig(Config):
                        leader's route ran through discs, before which it climbed and turned until time-out
                        (``kernels.columns_without_gap``) [X]
     leader_pace        what slows the leader by the (g2) feedback (``e0``, ``e1``): ``"slot"``, the followers' slot
-                       errors; ``"trail"``, each follower's smaller of its slot error and its lag along the leader's
-                       own trail (``controller.trail_lags``; its distance to the trail plus how much farther than its
-                       formation or column slot's range it lies behind along it). At a dog-leg's door bend the slots
-                       swing with the leader's heading: followers trailing through the door read 5-14 m slot errors
-                       and held the leader at ``min_leader_scale`` for 50 s and more; a follower held behind an
-                       obstacle is still waited for (pacing only followers farther than their slots' range lost calm
+                       errors; ``"trail"``, each follower's smaller of its slot error and its lag along the leader's own
+                       trail (``kernels.trail_lags``: the least, over the trail's points, of its distance to the point
+                       plus how much farther than its formation slot's range the point lies behind). At a dog-leg's door
+                       bend the slots swing with the leader's heading: followers trailing through the door read 5-14 m
+                       slot errors and held the leader at ``min_leader_scale`` for 50 s and more; a follower held behind
+                       an obstacle is still waited for (pacing only followers farther than their slots' range lost calm
                        episodes that way) [X]
     guard_gust_time    ``rules.drift_guard``'s clearance (``guard_clearance``) grows by ``guard_gust_time`` (s) x
                        the RMS drift (``rules.gust_speed``): gust bursts of 2-3 times the RMS drift carried UAVs braking

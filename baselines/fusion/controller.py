@@ -31,7 +31,7 @@ from ..vertical import BLOCKED, CLIMB, LEVEL, PlannerMemory
 from ..vfh3d import VFHPlanner
 from .config import ExpertConfig
 from .kernels import (closest_approach_of, columns_without_gap, gap_altitude_kernel, in_sphere, live_within,
-                      mark_cells, open_level_way, predicted_movers, segment_clear, surface_clearance)
+                      mark_cells, open_level_way, predicted_movers, segment_clear, surface_clearance, trail_lags)
 from .rules import (RULES, Command, Cycle, bearing_error, clamp, drift_persistence, gust_speed, leader_parked,
                     station_keep, wind_estimate)
 
@@ -769,20 +769,6 @@ def _follower_errors(view) -> np.ndarray:
     slots = s[:2] + _rotated(s[PSI], view.offsets[view.neighbour_ids])
     alive = view.neighbour_alive
     return np.linalg.norm(view.neighbour_states[alive, :2] - slots[alive], axis=1)
-
-
-def trail_lags(trail: np.ndarray, leader_xy: np.ndarray, followers_xy: np.ndarray, allowed: np.ndarray) -> np.ndarray:
-    """[X] ``leader_pace="trail"``: each follower's lag along the leader's trail (points (M, 2), oldest first, the
-    leader at ``leader_xy`` past the last): the least, over the trail's points, of its distance to the point plus
-    how much farther than ``allowed`` (K,) the point lies behind the leader along the trail. A follower trailing
-    through a door on the leader's own way lags by nothing while its slot, swung round the bend with the leader's
-    heading, is metres off; one held behind an obstacle, off the trail or far back along it, still lags; where the
-    leader turned back along its own trail, the newer points count."""
-    steps = np.sqrt(np.add.reduce(np.diff(trail, axis=0) ** 2, axis=1))
-    arc = np.concatenate([np.zeros(1), np.cumsum(steps)])
-    behind = arc[-1] + math.hypot(leader_xy[0] - trail[-1, 0], leader_xy[1] - trail[-1, 1]) - arc
-    off = np.sqrt(np.add.reduce((followers_xy[:, None, :] - trail[None, :, :]) ** 2, axis=2))
-    return np.min(off + np.maximum(0.0, behind[None, :] - allowed[:, None]), axis=1)
 
 
 def _slot_brake_cap(v_leader: float, distance: float, a_max: float) -> float:
