@@ -18,6 +18,7 @@ WEIGHT_NAMES = ("alpha0", "beta", "gamma", "eps0", "k1", "k2", "k3")
 ASTAR_LAYERS = ("passable", "band")
 REJOIN_MODES = ("astar", "trail")
 PARK_HEADINGS = ("nearest", "followers")
+LEADER_PACES = ("slot", "trail")
 
 
 @dataclass(frozen=True)
@@ -175,6 +176,14 @@ class ExpertConfig(Config):
                        between the sensor's elevation rows opened ways through the columns of ``classic-2d``; the
                        leader's route ran through discs, before which it climbed and turned until time-out
                        (``kernels.columns_without_gap``) [X]
+    leader_pace        what slows the leader by the (g2) feedback (``e0``, ``e1``): ``"slot"``, the followers' slot
+                       errors; ``"trail"``, each follower's smaller of its slot error and its lag along the leader's own
+                       trail (``kernels.trail_lags``: the least, over the trail's points, of its distance to the point
+                       plus how much farther than its formation slot's range the point lies behind). At a dog-leg's door
+                       bend the slots swing with the leader's heading: followers trailing through the door read 5-14 m
+                       slot errors and held the leader at ``min_leader_scale`` for 50 s and more; a follower held behind
+                       an obstacle is still waited for (pacing only followers farther than their slots' range lost calm
+                       episodes that way) [X]
     guard_gust_time    ``rules.drift_guard``'s clearance (``guard_clearance``) grows by ``guard_gust_time`` (s) x
                        the RMS drift (``rules.gust_speed``): gust bursts of 2-3 times the RMS drift carried UAVs braking
                        0.5-1 m from a tree or wall into it before a 20 deg/s turn could point them away [X]
@@ -290,6 +299,8 @@ class ExpertConfig(Config):
     way_misses: int = 4
     # -- breeze (issue 13, session 9 "s9breeze"): gust margins count only what r_safe does not already cover
     gust_allowance: float = 1.0
+    # -- the leader's pace at bends (issue 13, session 9 "s9dogleg")
+    leader_pace: str = "trail"
 
     BOUNDS: ClassVar[dict] = {
         "dwa": instance_of(DWAConfig), "vfh": instance_of(VFHConfig), "astar": instance_of(AStarConfig),
@@ -301,6 +312,7 @@ class ExpertConfig(Config):
         "astar_layer": one_of(ASTAR_LAYERS),
         "rejoin": one_of(REJOIN_MODES),
         "park_heading": one_of(PARK_HEADINGS),
+        "leader_pace": one_of(LEADER_PACES),
         "dwa_map_level": integer(0, 4),
         "debounce": integer(1, 100),
         "trail_window": integer(1),

@@ -31,7 +31,7 @@ from ..vertical import BLOCKED, CLIMB, LEVEL, PlannerMemory
 from ..vfh3d import VFHPlanner
 from .config import ExpertConfig
 from .kernels import (closest_approach_of, columns_without_gap, gap_altitude_kernel, in_sphere, live_within,
-                      mark_cells, open_level_way, predicted_movers, segment_clear, surface_clearance)
+                      mark_cells, open_level_way, predicted_movers, segment_clear, surface_clearance, trail_lags)
 from .rules import (RULES, Command, Cycle, bearing_error, clamp, drift_persistence, gust_speed, gust_standoff,
                     leader_parked, station_keep, wind_estimate)
 
@@ -48,6 +48,7 @@ class _UAVMemory(PlannerMemory):
     last_check_time: float = -1e9
     trail: list = field(default_factory=list)
     trail_progress: int = 0
+    pace_trail: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
     arrived: bool = False
     park_psi: float | None = None
     park_marks: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
@@ -403,12 +404,31 @@ class FusionExpert(OnboardPolicy):
         heading_target = cfg.astar.heading_target
         to_lookahead = heading_target == "lookahead" or (heading_target == "visible_goal" and not mem.goal_visible)
         goal = lookahead if to_lookahead else view.goal[:2]
-        errors = _follower_errors(view)
+        errors = self._pace_errors(view, mem, cfg)
         scale = 1.0
         if errors.size:
             mean_err = float(np.add.reduce(errors) / errors.size)           # np.mean's sum and division
             scale = clamp(1.0 - (mean_err - cfg.e0) / (cfg.e1 - cfg.e0), cfg.min_leader_scale, 1.0)
         return goal, lookahead, cfg.leader_speed_cap * lim.v_max * scale, None
+
+    @staticmethod
+    def _pace_errors(view, mem: _UAVMemory, cfg: ExpertConfig) -> np.ndarray:
+        """The followers' lags that pace the leader (``leader_pace``): their slot errors (``"slot"``), or each the
+        smaller of its slot error and its lag along the leader's own trail beyond its slot's range (``"trail"``,
+        ``trail_lags``; the trail kept as points ``trail_spacing`` apart, the last ``trail_window`` of them)."""
+        errors = _follower_errors(view)
+        if cfg.leader_pace != "trail":
+            return errors
+        pos = view.state[:2]
+        trail = mem.pace_trail
+        if not len(trail) or math.hypot(pos[0] - trail[-1, 0], pos[1] - trail[-1, 1]) >= cfg.trail_spacing:
+            mem.pace_trail = trail = np.concatenate([trail[max(0, len(trail) + 1 - cfg.trail_window):], pos[None]])
+        if not errors.size:
+            return errors
+        alive = view.neighbour_alive
+        allowed = np.linalg.norm(view.offsets[view.neighbour_ids[alive], :2], axis=1)
+        lags = trail_lags(trail, pos, view.neighbour_states[alive, :2], allowed)
+        return np.minimum(errors, lags)
 
     def _guidance(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float, goal_xy: np.ndarray):
         """A* lookahead point toward ``goal_xy`` on this UAV's own map, replanned on the (d5) triggers.

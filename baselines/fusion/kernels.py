@@ -271,3 +271,25 @@ def predicted_movers(states, cos_psi, sin_psi, dt, predict):
         if predict:
             vel[k, 0], vel[k, 1], vel[k, 2] = vx, vy, vz
     return pos, vel
+
+
+@numba.njit(cache=True)
+def trail_lags(trail, leader_xy, followers_xy, allowed):
+    """[X] ``leader_pace="trail"``: each follower's lag along the leader's trail (points (M, 2), oldest first, the
+    leader at ``leader_xy`` past the last): the least, over the trail's points, of its distance to the point plus
+    how much farther than ``allowed`` (K,) the point lies behind the leader along the trail. A follower trailing
+    through a door on the leader's own way lags by nothing while its slot, swung round the bend with the leader's
+    heading, is metres off; one held behind an obstacle, off the trail or far back along it, still lags; where the
+    leader turned back along its own trail, the newer points count."""
+    m = trail.shape[0]
+    behind = math.hypot(leader_xy[0] - trail[m - 1, 0], leader_xy[1] - trail[m - 1, 1])
+    lags = np.full(followers_xy.shape[0], np.inf)
+    for j in range(m - 1, -1, -1):                      # newest first, ``behind`` growing along the trail
+        if j < m - 1:
+            behind += math.hypot(trail[j + 1, 0] - trail[j, 0], trail[j + 1, 1] - trail[j, 1])
+        for i in range(followers_xy.shape[0]):
+            lag = math.hypot(followers_xy[i, 0] - trail[j, 0], followers_xy[i, 1] - trail[j, 1]) \
+                + max(0.0, behind - allowed[i])
+            if lag < lags[i]:
+                lags[i] = lag
+    return lags
