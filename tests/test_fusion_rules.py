@@ -12,7 +12,7 @@ from baselines.fusion import ExpertConfig, FusionExpert
 from baselines.fusion.controller import _UAVMemory
 from baselines.fusion.rules import (RULES, Command, Cycle, braking_fallback, dock_approach, dock_turn, drift_guard,
                                     drift_persistence, emergency_escape, gust_speed, reverse_turn, station_keep,
-                                    vertical_separation, wind_estimate)
+                                    vertical_separation, wind_estimate, wind_margin)
 from baselines.vfh3d import VFHPlanner
 from uavform_env import EnvConfig, parallel_env
 
@@ -386,3 +386,34 @@ def test_drift_guard_moves_a_hovering_uav_off_an_obstacle_in_gusts_even_when_dwa
     calm = Command(0.0, W_MAX, 0.0)
     drift_guard(calm, cycle(view(), _UAVMemory(), cfg=cfg, **near))    # still air: no gust standoff
     assert (calm.v, calm.w) == (0.0, W_MAX)
+
+
+def test_wind_margin_is_the_gust_time_times_the_rms_drift_capped_by_its_share_of_the_clearance():
+    gusty = _UAVMemory(drift_ms=0.25)                              # RMS drift 0.5 m/s
+    cfg = ExpertConfig(wind_margin=2.0, wind_margin_share=0.8)
+    assert wind_margin(gusty, cfg, 3.0) == pytest.approx(1.0)      # 2 s x 0.5 m/s, below 0.8 x 3 m
+    assert wind_margin(gusty, cfg, 1.0) == pytest.approx(0.8)      # capped: 0.8 x 1 m
+    assert wind_margin(gusty, ExpertConfig(wind_margin=2.0), 1.0) == pytest.approx(0.5)   # default share 1/2
+    assert wind_margin(gusty, cfg, -0.1) == 0.0                    # inside an obstacle: no margin
+    assert wind_margin(_UAVMemory(), cfg, 1.0) == 0.0              # still air: none (calm flights unchanged)
+
+
+def test_wind_margin_share_stops_dwa_closing_on_a_wall_inside_the_margin():
+    """A UAV 1.6 m from a wall ahead (x = 2, voxel radius 0.1) at 0.2 m/s, its goal beyond, RMS drift 0.5 m/s, margin
+    3 s (1.5 m): with the default share (1/2) DWA's margin is 0.8 m, and it flies on toward the wall (its rollout
+    ends 0.26 m outside the margin); with a share of 0.9 the margin is 1.44 m, and no sample is admissible (DWA brakes,
+    ``drift_guard`` takes over)."""
+    wall = np.array([[2.0, y, z] for y in np.arange(-3.0, 3.01, 0.2) for z in (2.8, 3.0, 3.2)])
+    state = np.array([0.0, 0.0, 3.0, 0.0, 0.2, 0.0, 0.0])
+    clearance = 2.0 - 0.1 - LIM.r_uav
+    gusty = _UAVMemory(drift_ms=0.25)
+
+    def plan(share):
+        cfg = ExpertConfig(wind_margin=3.0, wind_margin_share=share)
+        radii = np.full(len(wall), 0.1 + wind_margin(gusty, cfg, clearance))
+        return dwa_plan(state, LIM, cfg.dwa, np.array([10.0, 0.0]), wall, radii, clearance_now=clearance)
+
+    half, most = plan(0.5), plan(0.9)
+    assert half.admissible and half.v > 0.0 and half.w == 0.0
+    assert half.clearance == pytest.approx(0.26) and half.endpoint[0] == pytest.approx(0.54)
+    assert not most.admissible and most.n_admissible == 0

@@ -33,7 +33,7 @@ from .config import ExpertConfig
 from .kernels import (closest_approach_of, columns_without_gap, gap_altitude_kernel, in_sphere, live_within,
                       mark_cells, open_level_way, predicted_movers, segment_clear, surface_clearance)
 from .rules import (RULES, Command, Cycle, bearing_error, clamp, drift_persistence, gust_speed, leader_parked,
-                    station_keep, wind_estimate)
+                    station_keep, wind_estimate, wind_margin)
 
 
 @dataclass
@@ -332,9 +332,7 @@ class FusionExpert(OnboardPolicy):
         docking = view.is_leader and self._final_approach(view, target.goal, obstacles, radius, cfg,
                                                           cfg.approach_radius)
         fence = geofence_points(pos, local.reach, view.bounds_lo, view.bounds_hi, cfg.geofence_spacing)
-        # the wind margin, never more than half the clearance the UAV has: a UAV the gusts carried inside it can
-        # still hold or leave (every sample would otherwise be inadmissible, and it would brake where it is)
-        radii = np.full(len(obstacles), radius + min(cfg.wind_margin * gust_speed(mem), 0.5 * max(0.0, clearance_now)))
+        radii = np.full(len(obstacles), radius + wind_margin(mem, cfg, clearance_now))
         if len(fence):
             obstacles = np.concatenate([obstacles, fence])
             radii = np.concatenate([radii, np.zeros(len(fence))])          # the fence points have radius 0

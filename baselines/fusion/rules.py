@@ -277,6 +277,15 @@ def gust_speed(mem) -> float:
     return math.sqrt(mem.drift_ms)
 
 
+def wind_margin(mem, cfg, clearance_now: float) -> float:
+    """[X] ``wind_margin``, ``wind_margin_share``: how far DWA's obstacle points grow in gusts (m): ``wind_margin``
+    s x the RMS drift (``gust_speed``), at most ``wind_margin_share`` of the UAV's current clearance (a UAV the gusts
+    carried inside the margin can still hold or leave: a margin as large as the clearance makes every sample
+    inadmissible). A share of 1/2 lets a UAV close in to half its clearance every cycle, so the margin never stops
+    an approach; a larger share keeps it nearer the clearance it has."""
+    return min(cfg.wind_margin * gust_speed(mem), cfg.wind_margin_share * max(0.0, clearance_now))
+
+
 # ---------------------------------------------------------------------- helpers (the controller uses them too)
 def drift_persistence(lim, horizon: float) -> float:
     """The share of a drift d felt now that carries on over ``horizon`` s, as a constant velocity with the same
