@@ -11,8 +11,8 @@ from baselines.dwa import dwa_plan
 from baselines.fusion import ExpertConfig, FusionExpert
 from baselines.fusion.controller import _UAVMemory
 from baselines.fusion.rules import (RULES, Command, Cycle, braking_fallback, dock_approach, dock_turn, drift_guard,
-                                    drift_persistence, emergency_escape, gust_speed, reverse_turn, station_keep,
-                                    vertical_separation, wind_estimate, wind_margin)
+                                    drift_persistence, emergency_escape, fence_clearance, gust_speed, reverse_turn,
+                                    station_keep, vertical_separation, wind_estimate, wind_margin)
 from baselines.vfh3d import VFHPlanner
 from uavform_env import EnvConfig, parallel_env
 
@@ -417,3 +417,15 @@ def test_wind_margin_share_stops_dwa_closing_on_a_wall_inside_the_margin():
     assert half.admissible and half.v > 0.0 and half.w == 0.0
     assert half.clearance == pytest.approx(0.26) and half.endpoint[0] == pytest.approx(0.54)
     assert not most.admissible and most.n_admissible == 0
+
+
+def test_fence_clearance_is_the_nearest_horizontal_bound_less_r_uav():
+    lo, hi = np.array([0.0, 0.0, 0.0]), np.array([20.0, 10.0, 8.0])
+    assert fence_clearance(np.array([3.0, 8.5, 7.9]), lo, hi, 0.3) == pytest.approx(1.2)   # y bound 1.5 m; z ignored
+    assert fence_clearance(np.array([0.1, 5.0, 3.0]), lo, hi, 0.3) == pytest.approx(-0.2)  # closer than r_uav
+
+
+def test_gust_margins_leave_still_air_flights_unchanged():
+    """In still air the RMS drift is exactly 0, so the wind margin is 0 whatever its time, share and fence flag."""
+    gusts = ExpertConfig(wind_margin=2.5, wind_margin_share=0.8, fence_margin=True)
+    np.testing.assert_array_equal(_flight(FusionExpert(gusts)), _flight(FusionExpert()))

@@ -152,6 +152,9 @@ class ExpertConfig(Config):
                        can still hold or leave; ``rules.wind_margin``). A share of 1/2 lets DWA close in to half the
                        clearance every cycle, so the margin never stops an approach; a larger share holds the UAV
                        near the clearance it has once inside the margin [X]
+    fence_margin       the world's bounds (``geofence_spacing``) grow by the wind margin too; False: they keep radius 0
+                       (a gusty leader in ``classic-2d`` kept its margin from the discs and was carried out of the
+                       world beside them) [X]
     wind_drift         DWA's rollouts drift with the estimated wind (``dwa_plan(drift=...)``) times the share of it
                        the autopilot leaves over the horizon (``rules.drift_persistence``): a sample that holds
                        still while the wind carries the UAV into an obstacle is inadmissible [X]
@@ -286,6 +289,7 @@ class ExpertConfig(Config):
     way_misses: int = 4
     # -- gusts (issue 13, session 9 "s9gusty")
     wind_margin_share: float = 0.5
+    fence_margin: bool = False
 
     BOUNDS: ClassVar[dict] = {
         "dwa": instance_of(DWAConfig), "vfh": instance_of(VFHConfig), "astar": instance_of(AStarConfig),
@@ -293,7 +297,7 @@ class ExpertConfig(Config):
                                       "climb_target_limit", "gap_hold", "slot_brake",
                                       "park_turn", "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap",
                                       "rejoin_hidden", "final_approach_free", "wind_drift", "dock_approach",
-                                      "explore_unknown", "route_turn_cost")},
+                                      "explore_unknown", "route_turn_cost", "fence_margin")},
         "astar_layer": one_of(ASTAR_LAYERS),
         "rejoin": one_of(REJOIN_MODES),
         "park_heading": one_of(PARK_HEADINGS),

@@ -286,6 +286,11 @@ def wind_margin(mem, cfg, clearance_now: float) -> float:
     return min(cfg.wind_margin * gust_speed(mem), cfg.wind_margin_share * max(0.0, clearance_now))
 
 
+def fence_clearance(pos, bounds_lo, bounds_hi, r_uav: float) -> float:
+    """The UAV's horizontal clearance (m) to the world's x/y bounds: the nearest bound's distance minus r_uav."""
+    return float(min(pos[0] - bounds_lo[0], pos[1] - bounds_lo[1], bounds_hi[0] - pos[0], bounds_hi[1] - pos[1])) - r_uav
+
+
 # ---------------------------------------------------------------------- helpers (the controller uses them too)
 def drift_persistence(lim, horizon: float) -> float:
     """The share of a drift d felt now that carries on over ``horizon`` s, as a constant velocity with the same
