@@ -393,14 +393,14 @@ def test_wind_margin_is_the_gust_time_times_the_rms_drift_capped_by_its_share_of
     cfg = ExpertConfig(wind_margin=2.0, wind_margin_share=0.8)
     assert wind_margin(gusty, cfg, 3.0) == pytest.approx(1.0)      # 2 s x 0.5 m/s, below 0.8 x 3 m
     assert wind_margin(gusty, cfg, 1.0) == pytest.approx(0.8)      # capped: 0.8 x 1 m
-    assert wind_margin(gusty, ExpertConfig(wind_margin=2.0), 1.0) == pytest.approx(0.5)   # default share 1/2
+    assert wind_margin(gusty, ExpertConfig(wind_margin=2.0, wind_margin_share=0.5), 1.0) == pytest.approx(0.5)
     assert wind_margin(gusty, cfg, -0.1) == 0.0                    # inside an obstacle: no margin
     assert wind_margin(_UAVMemory(), cfg, 1.0) == 0.0              # still air: none (calm flights unchanged)
 
 
 def test_wind_margin_share_stops_dwa_closing_on_a_wall_inside_the_margin():
     """A UAV 1.6 m from a wall ahead (x = 2, voxel radius 0.1) at 0.2 m/s, its goal beyond, RMS drift 0.5 m/s, margin
-    3 s (1.5 m): with the default share (1/2) DWA's margin is 0.8 m, and it flies on toward the wall (its rollout
+    3 s (1.5 m): with a share of 1/2 (the cap before session 9) DWA's margin is 0.8 m, and it flies on toward the wall (its rollout
     ends 0.26 m outside the margin); with a share of 0.9 the margin is 1.44 m, and no sample is admissible (DWA brakes,
     ``drift_guard`` takes over)."""
     wall = np.array([[2.0, y, z] for y in np.arange(-3.0, 3.01, 0.2) for z in (2.8, 3.0, 3.2)])
@@ -427,5 +427,6 @@ def test_fence_clearance_is_the_nearest_horizontal_bound_less_r_uav():
 
 def test_gust_margins_leave_still_air_flights_unchanged():
     """In still air the RMS drift is exactly 0, so the wind margin is 0 whatever its time, share and fence flag."""
+    before = ExpertConfig(wind_margin_share=0.5, fence_margin=False)              # the margins before session 9
     gusts = ExpertConfig(wind_margin=2.5, wind_margin_share=0.8, fence_margin=True)
-    np.testing.assert_array_equal(_flight(FusionExpert(gusts)), _flight(FusionExpert()))
+    np.testing.assert_array_equal(_flight(FusionExpert(gusts)), _flight(FusionExpert(before)))

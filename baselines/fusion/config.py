@@ -288,8 +288,8 @@ class ExpertConfig(Config):
     # the passable raster: free evidence of a way (s8maze: classic-2d "extended" under noisy, issue 13)
     way_misses: int = 4
     # -- gusts (issue 13, session 9 "s9gusty")
-    wind_margin_share: float = 0.5
-    fence_margin: bool = False
+    wind_margin_share: float = 0.8
+    fence_margin: bool = True
 
     BOUNDS: ClassVar[dict] = {
         "dwa": instance_of(DWAConfig), "vfh": instance_of(VFHConfig), "astar": instance_of(AStarConfig),
