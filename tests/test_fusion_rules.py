@@ -400,9 +400,9 @@ def test_wind_margin_is_the_gust_time_times_the_rms_drift_capped_by_its_share_of
 
 def test_wind_margin_share_stops_dwa_closing_on_a_wall_inside_the_margin():
     """A UAV 1.6 m from a wall ahead (x = 2, voxel radius 0.1) at 0.2 m/s, its goal beyond, RMS drift 0.5 m/s, margin
-    3 s (1.5 m): with a share of 1/2 (the cap before session 9) DWA's margin is 0.8 m, and it flies on toward the wall (its rollout
-    ends 0.26 m outside the margin); with a share of 0.9 the margin is 1.44 m, and no sample is admissible (DWA brakes,
-    ``drift_guard`` takes over)."""
+    3 s (1.5 m): with a share of 1/2 (the cap before session 9) DWA's margin is 0.8 m, and it flies on toward the
+    wall (its rollout ends 0.26 m outside the margin); with a share of 0.9 the margin is 1.44 m, and no sample is
+    admissible (DWA brakes, ``drift_guard`` takes over)."""
     wall = np.array([[2.0, y, z] for y in np.arange(-3.0, 3.01, 0.2) for z in (2.8, 3.0, 3.2)])
     state = np.array([0.0, 0.0, 3.0, 0.0, 0.2, 0.0, 0.0])
     clearance = 2.0 - 0.1 - LIM.r_uav

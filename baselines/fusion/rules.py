@@ -288,7 +288,8 @@ def wind_margin(mem, cfg, clearance_now: float) -> float:
 
 def fence_clearance(pos, bounds_lo, bounds_hi, r_uav: float) -> float:
     """The UAV's horizontal clearance (m) to the world's x/y bounds: the nearest bound's distance minus r_uav."""
-    return float(min(pos[0] - bounds_lo[0], pos[1] - bounds_lo[1], bounds_hi[0] - pos[0], bounds_hi[1] - pos[1])) - r_uav
+    nearest = min(pos[0] - bounds_lo[0], pos[1] - bounds_lo[1], bounds_hi[0] - pos[0], bounds_hi[1] - pos[1])
+    return float(nearest) - r_uav
 
 
 # ---------------------------------------------------------------------- helpers (the controller uses them too)
