@@ -11,7 +11,11 @@ One UAV in an empty field (``disturbance_drift.field``), per preset, airframe an
   own dynamics (unicycle: v in [0, v_max], a_max, w_max), once with the exact drift of the last step ("oracle")
   and once with its own estimate (``rules.wind_estimate``, as the expert flies);
 - the same for an ideal holder that turns instantly and moves in any direction at up to v_max, knowing the drift
-  (u = -(drift + k_hold p), capped at v_max), integrated on the recorded drift: what the speed limit alone allows.
+  (u = -(drift + k_hold p), capped at v_max), integrated on the recorded drift: what the speed limit alone allows;
+- the clearance a holding UAV needs (issue 13, gusts): the 99th percentile, over every step of every seed after the
+  first 5 s, of the distance from the start of the unicycle holding with the exact drift and of one hovering at
+  v = 0 (its autopilot alone), and the median RMS drift (``rules.gust_speed``) it measures, which wind margins
+  scale with; their ratio is the margin time (s) that covers the p99 wander.
 Airframes (``disturbance_drift.AIRFRAMES``): the default, whose autopilot leans into its lagging wind estimate
 (``UAVLimits.wind_authority``, ``wind_rejection_tau``), and the unopposed model (``wind_authority=0``).
 """
@@ -25,15 +29,16 @@ from types import SimpleNamespace
 import numpy as np
 
 from baselines.fusion import ExpertConfig
-from baselines.fusion.rules import station_keep, wind_estimate
+from baselines.fusion.rules import gust_speed, station_keep, wind_estimate
 from disturbance_drift import AIRFRAMES, field
 from uavform_env import parallel_env
 from uavform_env.config import EnvConfig, UAVLimits
 from uavform_env.dynamics import commands_to_actions
 
 
-def hold(preset: str, seed: int, seconds: float, oracle: bool, uav: UAVLimits) -> float:
-    """The largest distance from the start (m) of one holding flight."""
+def hold(preset: str, seed: int, seconds: float, mode: str, uav: UAVLimits) -> tuple[np.ndarray, np.ndarray]:
+    """Each step's distance from the start (m) of one holding flight, and the RMS drift the UAV measures then:
+    ``mode`` "own" (station keeping on its own wind estimate), "oracle" (on the exact drift), "hover" (v = 0)."""
     cfg = ExpertConfig()
     steps = int(round(seconds / uav.dt))
     penv = parallel_env(scenario=field(1), max_cycles=steps, disturbance=preset, config=EnvConfig(uav=uav))
@@ -42,16 +47,17 @@ def hold(preset: str, seed: int, seconds: float, oracle: bool, uav: UAVLimits) -
     lim = env.config.uav
     start = env.states[0, :2].copy()
     mem = SimpleNamespace(wind=np.zeros(2), drift_ms=0.0, prev_pose=None, held=False)
-    worst = 0.0
+    dist, gust = [], []
     while penv.agents:
         view = SimpleNamespace(state=env.states[0].copy(), limits=lim)
         wind_estimate(view, mem, cfg)
-        if oracle:
+        if mode == "oracle":
             mem.wind = env.drift[0, :2].copy()      # the drift of the last step, exactly
-        cmd = station_keep(view, mem, cfg, start, 0.0)
+        cmd = station_keep(view, mem, cfg, start, 0.0) if mode != "hover" else SimpleNamespace(v=0.0, w=0.0)
         penv.step({"uav_0": commands_to_actions(np.array([cmd.v, cmd.w, 0.0]), lim)})
-        worst = max(worst, float(np.hypot(*(env.states[0, :2] - start))))
-    return worst
+        dist.append(float(np.hypot(*(env.states[0, :2] - start))))
+        gust.append(gust_speed(mem))
+    return np.array(dist), np.array(gust)
 
 
 def ideal(speeds_xy: np.ndarray, v_max: float, k: float, dt: float) -> float:
@@ -92,12 +98,19 @@ def main() -> None:
     v_max = UAVLimits().v_max
     print(f"| preset | airframe | wind > v_max ({v_max:g} m/s), share of time | drift > v_max | drift > 0.5 v_max | "
           f"largest excursion holding a point for {args.seconds:g} s, median / p95 (m): unicycle, own wind "
-          "estimate | unicycle, exact drift | ideal holonomic holder |")
-    print("|---|---|---|---|---|---|---|---|")
+          "estimate | unicycle, exact drift | ideal holonomic holder | distance from the point, p99 of all steps (m): "
+          "unicycle, exact drift / hovering at v = 0 | median RMS drift (m/s) | p99 / RMS drift (s) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    warm = int(round(5.0 / UAVLimits().dt))
     for preset in ("breeze", "gusty"):
         for label, uav in AIRFRAMES:
-            own = [hold(preset, s, args.seconds, False, uav) for s in range(args.seeds)]
-            exact = [hold(preset, s, args.seconds, True, uav) for s in range(args.seeds)]
+            own = [hold(preset, s, args.seconds, "own", uav)[0].max() for s in range(args.seeds)]
+            flights = [hold(preset, s, args.seconds, "oracle", uav) for s in range(args.seeds)]
+            exact = [d.max() for d, _ in flights]
+            p99 = np.percentile(np.concatenate([d[warm:] for d, _ in flights]), 99)
+            rms = np.median(np.concatenate([g[warm:] for _, g in flights]))
+            hover = np.percentile(np.concatenate([hold(preset, s, args.seconds, "hover", uav)[0][warm:]
+                                                  for s in range(args.seeds)]), 99)
             series = [wind_series(preset, s, args.seconds, uav) for s in range(args.seeds)]
             wind = np.concatenate([np.hypot(a[:, 0], a[:, 1]) for a, _ in series])
             drift = np.concatenate([np.hypot(d[:, 0], d[:, 1]) for _, d in series])
@@ -106,7 +119,8 @@ def main() -> None:
             def cell(x):
                 return f"{np.median(x):.2f} / {np.percentile(x, 95):.2f}"
             print(f"| `{preset}` | {label} | {np.mean(wind > uav.v_max):.3f} | {np.mean(drift > uav.v_max):.3f} | "
-                  f"{np.mean(drift > 0.5 * uav.v_max):.3f} | {cell(own)} | {cell(exact)} | {cell(best)} |")
+                  f"{np.mean(drift > 0.5 * uav.v_max):.3f} | {cell(own)} | {cell(exact)} | {cell(best)} | "
+                  f"{p99:.2f} / {hover:.2f} | {rms:.2f} | {p99 / rms:.1f} |")
 
 
 if __name__ == "__main__":

@@ -11,8 +11,8 @@ from baselines.dwa import dwa_plan
 from baselines.fusion import ExpertConfig, FusionExpert
 from baselines.fusion.controller import _UAVMemory
 from baselines.fusion.rules import (RULES, Command, Cycle, braking_fallback, dock_approach, dock_turn, drift_guard,
-                                    drift_persistence, emergency_escape, gust_speed, gust_standoff, reverse_turn,
-                                    station_keep, vertical_separation, wind_estimate)
+                                    drift_persistence, emergency_escape, fence_clearance, gust_speed, gust_standoff,
+                                    reverse_turn, station_keep, vertical_separation, wind_estimate, wind_margin)
 from baselines.vfh3d import VFHPlanner
 from uavform_env import EnvConfig, parallel_env
 
@@ -422,8 +422,8 @@ def test_drift_guard_leaves_a_hovering_uav_in_a_breeze_to_dwa_where_r_safe_cover
 
 def test_dwa_wind_margin_in_a_breeze_is_what_r_safe_does_not_cover():
     """``gust_allowance`` in DWA's obstacle radii: in a breeze (RMS drift ~0.16 m/s, below r_safe / wind_margin =
-    0.2 m/s) the voxels keep their own radius; with the allowance off they grew by wind_margin x the RMS drift (at
-    most half the clearance). Every DWA call of a 40-step, 3-UAV forest flight is checked."""
+    0.2 m/s) the voxels keep their own radius; with the allowance off they grow by wind_margin x the RMS drift (at
+    most ``wind_margin_share`` of the clearance). Every DWA call of a 40-step, 3-UAV forest flight is checked."""
     def margins(cfg):
         seen = []
 
@@ -448,4 +448,50 @@ def test_dwa_wind_margin_in_a_breeze_is_what_r_safe_does_not_cover():
     assert np.allclose(now[:, 1], voxel) and np.all(now[:, 0] == 0.0)             # no margin at all
     before, _ = margins(ExpertConfig(gust_allowance=0.0))
     grown = before[:, 1] - voxel
-    assert grown.max() > 0.05 and np.all(grown <= 0.5 * np.maximum(before[:, 2], 0.0) + 1e-12)
+    assert grown.max() > 0.05 and np.all(grown <= CFG.wind_margin_share * np.maximum(before[:, 2], 0.0) + 1e-12)
+
+
+def test_wind_margin_is_the_gust_time_times_the_rms_drift_capped_by_its_share_of_the_clearance():
+    """With ``gust_allowance`` 0 (its own test above): the margin is the gust standoff, capped by the share."""
+    gusty = _UAVMemory(drift_ms=0.25)                              # RMS drift 0.5 m/s
+    cfg = ExpertConfig(wind_margin=2.0, wind_margin_share=0.8, gust_allowance=0.0)
+    assert wind_margin(gusty, cfg, 3.0, LIM.r_safe) == pytest.approx(1.0)      # 2 s x 0.5 m/s, below 0.8 x 3 m
+    assert wind_margin(gusty, cfg, 1.0, LIM.r_safe) == pytest.approx(0.8)      # capped: 0.8 x 1 m
+    assert wind_margin(gusty, ExpertConfig(wind_margin=2.0, wind_margin_share=0.5, gust_allowance=0.0), 1.0,
+                       LIM.r_safe) == pytest.approx(0.5)
+    assert wind_margin(gusty, cfg, -0.1, LIM.r_safe) == 0.0                    # inside an obstacle: no margin
+    assert wind_margin(_UAVMemory(), cfg, 1.0, LIM.r_safe) == 0.0              # still air: none (calm unchanged)
+
+
+def test_wind_margin_share_stops_dwa_closing_on_a_wall_inside_the_margin():
+    """A UAV 1.6 m from a wall ahead (x = 2, voxel radius 0.1) at 0.2 m/s, its goal beyond, RMS drift 0.5 m/s, margin
+    3 s (1.5 m): with a share of 1/2 (the cap before session 9) DWA's margin is 0.8 m, and it flies on toward the
+    wall (its rollout ends 0.26 m outside the margin); with a share of 0.9 the margin is 1.44 m, and no sample is
+    admissible (DWA brakes, ``drift_guard`` takes over)."""
+    wall = np.array([[2.0, y, z] for y in np.arange(-3.0, 3.01, 0.2) for z in (2.8, 3.0, 3.2)])
+    state = np.array([0.0, 0.0, 3.0, 0.0, 0.2, 0.0, 0.0])
+    clearance = 2.0 - 0.1 - LIM.r_uav
+    gusty = _UAVMemory(drift_ms=0.25)
+
+    def plan(share):
+        cfg = ExpertConfig(wind_margin=3.0, wind_margin_share=share, gust_allowance=0.0)
+        radii = np.full(len(wall), 0.1 + wind_margin(gusty, cfg, clearance, LIM.r_safe))
+        return dwa_plan(state, LIM, cfg.dwa, np.array([10.0, 0.0]), wall, radii, clearance_now=clearance)
+
+    half, most = plan(0.5), plan(0.9)
+    assert half.admissible and half.v > 0.0 and half.w == 0.0
+    assert half.clearance == pytest.approx(0.26) and half.endpoint[0] == pytest.approx(0.54)
+    assert not most.admissible and most.n_admissible == 0
+
+
+def test_fence_clearance_is_the_nearest_horizontal_bound_less_r_uav():
+    lo, hi = np.array([0.0, 0.0, 0.0]), np.array([20.0, 10.0, 8.0])
+    assert fence_clearance(np.array([3.0, 8.5, 7.9]), lo, hi, 0.3) == pytest.approx(1.2)   # y bound 1.5 m; z ignored
+    assert fence_clearance(np.array([0.1, 5.0, 3.0]), lo, hi, 0.3) == pytest.approx(-0.2)  # closer than r_uav
+
+
+def test_gust_margins_leave_still_air_flights_unchanged():
+    """In still air the RMS drift is exactly 0, so the wind margin is 0 whatever its time, share and fence flag."""
+    before = ExpertConfig(wind_margin_share=0.5, fence_margin=False)              # the margins before session 9
+    gusts = ExpertConfig(wind_margin=2.5, wind_margin_share=0.8, fence_margin=True)
+    np.testing.assert_array_equal(_flight(FusionExpert(gusts)), _flight(FusionExpert(before)))

@@ -148,9 +148,14 @@ class ExpertConfig(Config):
                        (``rules.wind_estimate``: observed minus commanded motion) [X]
     gust_tau           time constant (s) of the mean square of the UAV's drift (``rules.gust_speed``, its root: the
                        drift speed gusts cause, which the wind margins scale with) [X]
-    wind_margin        DWA's obstacle voxels grow by ``wind_margin`` (s) x the RMS drift (less ``gust_allowance``), at
-                       most half the UAV's current clearance (a UAV the gusts carried inside its margin can still
-                       hold or leave) [X]
+    wind_margin, wind_margin_share  DWA's obstacle voxels grow by ``wind_margin`` (s) x the RMS drift
+                       (less ``gust_allowance``), at most ``wind_margin_share`` of the UAV's current clearance (a UAV
+                       the gusts carried inside its margin can still hold or leave; ``rules.wind_margin``). A share of
+                       1/2 lets DWA close in to half the clearance every cycle, so the margin never stops an approach;
+                       a larger share holds the UAV near the clearance it has once inside the margin [X]
+    fence_margin       the world's bounds (``geofence_spacing``) grow by the wind margin too; False: they keep radius 0
+                       (a gusty leader in ``classic-2d`` kept its margin from the discs and was carried out of the
+                       world beside them) [X]
     wind_drift         DWA's rollouts drift with the estimated wind (``dwa_plan(drift=...)``) times the share of it
                        the autopilot leaves over the horizon (``rules.drift_persistence``): a sample that holds
                        still while the wind carries the UAV into an obstacle is inadmissible [X]
@@ -301,6 +306,9 @@ class ExpertConfig(Config):
     gust_allowance: float = 1.0
     # -- the leader's pace at bends (issue 13, session 9 "s9dogleg")
     leader_pace: str = "trail"
+    # -- gusts (issue 13, session 9 "s9gusty")
+    wind_margin_share: float = 0.8
+    fence_margin: bool = True
 
     BOUNDS: ClassVar[dict] = {
         "dwa": instance_of(DWAConfig), "vfh": instance_of(VFHConfig), "astar": instance_of(AStarConfig),
@@ -308,7 +316,7 @@ class ExpertConfig(Config):
                                       "climb_target_limit", "gap_hold", "slot_brake",
                                       "park_turn", "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap",
                                       "rejoin_hidden", "final_approach_free", "wind_drift", "dock_approach",
-                                      "explore_unknown", "route_turn_cost")},
+                                      "explore_unknown", "route_turn_cost", "fence_margin")},
         "astar_layer": one_of(ASTAR_LAYERS),
         "rejoin": one_of(REJOIN_MODES),
         "park_heading": one_of(PARK_HEADINGS),
@@ -330,6 +338,7 @@ class ExpertConfig(Config):
         **{name: in_range(0.0, lo_open=True) for name in ("wind_tau", "gust_tau")},
         "leader_speed_cap": in_range(0.0, 1.0, lo_open=True),
         "yield_factor": in_range(0.0, 1.0),
+        "wind_margin_share": in_range(0.0, 1.0),
         "min_leader_scale": in_range(0.0, 1.0),
         "level_window": in_range(0.0, math.pi),
         "dock_turn_angle": in_range(0.0, math.pi),

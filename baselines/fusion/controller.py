@@ -32,8 +32,8 @@ from ..vfh3d import VFHPlanner
 from .config import ExpertConfig
 from .kernels import (closest_approach_of, columns_without_gap, gap_altitude_kernel, in_sphere, live_within,
                       mark_cells, open_level_way, predicted_movers, segment_clear, surface_clearance, trail_lags)
-from .rules import (RULES, Command, Cycle, bearing_error, clamp, drift_persistence, gust_speed, gust_standoff,
-                    leader_parked, station_keep, wind_estimate)
+from .rules import (RULES, Command, Cycle, bearing_error, clamp, drift_persistence, fence_clearance, gust_speed,
+                    leader_parked, station_keep, wind_estimate, wind_margin)
 
 
 @dataclass
@@ -333,13 +333,15 @@ class FusionExpert(OnboardPolicy):
         docking = view.is_leader and self._final_approach(view, target.goal, obstacles, radius, cfg,
                                                           cfg.approach_radius)
         fence = geofence_points(pos, local.reach, view.bounds_lo, view.bounds_hi, cfg.geofence_spacing)
-        # the wind margin, never more than half the clearance the UAV has: a UAV the gusts carried inside it can
-        # still hold or leave (every sample would otherwise be inadmissible, and it would brake where it is)
-        margin = gust_standoff(mem, cfg, cfg.wind_margin, lim.r_safe)
-        radii = np.full(len(obstacles), radius + min(margin, 0.5 * max(0.0, clearance_now)))
-        if len(fence):
+        if cfg.fence_margin:                    # the margin's cap counts the world's bounds as obstacles too
+            margin = wind_margin(mem, cfg, min(clearance_now, fence_clearance(pos, view.bounds_lo, view.bounds_hi,
+                                                                                lim.r_uav)), lim.r_safe)
+        else:
+            margin = wind_margin(mem, cfg, clearance_now, lim.r_safe)
+        radii = np.full(len(obstacles), radius + margin)
+        if len(fence):                          # the fence points have radius 0, plus the margin if ``fence_margin``
             obstacles = np.concatenate([obstacles, fence])
-            radii = np.concatenate([radii, np.zeros(len(fence))])          # the fence points have radius 0
+            radii = np.concatenate([radii, np.full(len(fence), margin if cfg.fence_margin else 0.0)])
         alive = view.neighbour_alive
         alive_pos, alive_vel = (local.movers_pos, local.movers_vel) if alive.all() else \
             (local.movers_pos[alive], local.movers_vel[alive])

@@ -286,6 +286,21 @@ def gust_standoff(mem, cfg, time: float, r_safe: float) -> float:
     return max(0.0, time * gust_speed(mem) - cfg.gust_allowance * r_safe)
 
 
+def wind_margin(mem, cfg, clearance_now: float, r_safe: float) -> float:
+    """[X] ``wind_margin``, ``wind_margin_share``: how far DWA's obstacle points grow in gusts (m): ``wind_margin``
+    s x the RMS drift less what r_safe covers (``gust_standoff``), at most ``wind_margin_share`` of the UAV's
+    current clearance (a UAV the gusts carried inside the margin can still hold or leave: a margin as large as the
+    clearance makes every sample inadmissible). A share of 1/2 lets a UAV close in to half its clearance every
+    cycle, so the margin never stops an approach; a larger share keeps it nearer the clearance it has."""
+    return min(gust_standoff(mem, cfg, cfg.wind_margin, r_safe), cfg.wind_margin_share * max(0.0, clearance_now))
+
+
+def fence_clearance(pos, bounds_lo, bounds_hi, r_uav: float) -> float:
+    """The UAV's horizontal clearance (m) to the world's x/y bounds: the nearest bound's distance minus r_uav."""
+    nearest = min(pos[0] - bounds_lo[0], pos[1] - bounds_lo[1], bounds_hi[0] - pos[0], bounds_hi[1] - pos[1])
+    return float(nearest) - r_uav
+
+
 # ---------------------------------------------------------------------- helpers (the controller uses them too)
 def drift_persistence(lim, horizon: float) -> float:
     """The share of a drift d felt now that carries on over ``horizon`` s, as a constant velocity with the same
