@@ -421,9 +421,10 @@ def test_drift_guard_leaves_a_hovering_uav_in_a_breeze_to_dwa_where_r_safe_cover
 
 
 def test_dwa_wind_margin_in_a_breeze_is_what_r_safe_does_not_cover():
-    """``gust_allowance`` in DWA's obstacle radii: in a breeze (RMS drift ~0.16 m/s, below r_safe / wind_margin =
-    0.2 m/s) the voxels keep their own radius; with the allowance off they grow by wind_margin x the RMS drift (at
-    most ``wind_margin_share`` of the clearance). Every DWA call of a 40-step, 3-UAV forest flight is checked."""
+    """``gust_allowance`` in DWA's obstacle radii: with ``wind_margin`` 1 s, in a breeze (RMS drift ~0.16 m/s, below
+    r_safe / wind_margin = 0.2 m/s) the voxels keep their own radius; with the allowance off they grow by wind_margin
+    x the RMS drift (at most ``wind_margin_share`` of the clearance). Every DWA call of a 40-step, 3-UAV forest
+    flight is checked."""
     def margins(cfg):
         seen = []
 
@@ -443,10 +444,11 @@ def test_dwa_wind_margin_in_a_breeze_is_what_r_safe_does_not_cover():
         return np.array(seen), gusts
 
     voxel = 0.2 * math.sqrt(3.0) / 2.0
-    now, gusts = margins(CFG)
-    assert len(now) > 40 and max(gusts) * CFG.wind_margin < LIM.r_safe
+    cfg = ExpertConfig(wind_margin=1.0)
+    now, gusts = margins(cfg)
+    assert len(now) > 40 and max(gusts) * cfg.wind_margin < LIM.r_safe
     assert np.allclose(now[:, 1], voxel) and np.all(now[:, 0] == 0.0)             # no margin at all
-    before, _ = margins(ExpertConfig(gust_allowance=0.0))
+    before, _ = margins(ExpertConfig(wind_margin=1.0, gust_allowance=0.0))
     grown = before[:, 1] - voxel
     assert grown.max() > 0.05 and np.all(grown <= CFG.wind_margin_share * np.maximum(before[:, 2], 0.0) + 1e-12)
 

@@ -288,7 +288,7 @@ class ExpertConfig(Config):
     vane_wind: float = 0.1
     approach_radius: float = 3.0
     glide_slope: float = 0.5
-    wind_margin: float = 1.0
+    wind_margin: float = 1.5
     separation_margin: float = 0.3
     guard_clearance: float = 0.4
     guard_speed: float = 0.3
