@@ -130,3 +130,17 @@ def test_uavform_train_on_the_cluster_matches_worker_processes(cluster, tmp_path
     assert states[0]["best"] == states[1]["best"]
     for name in params[0]:
         assert params[0][name].equal(params[1][name]), f"{name} differs between the process and Ray backends"
+
+
+def test_a_local_ray_does_not_join_another_cluster_on_the_machine(cluster):
+    """Without an address (and no RAY_ADDRESS) the backend starts its own local Ray with its ``num_cpus``, even
+    while another process's cluster runs on this machine (Ray's default would join that one and refuse
+    ``num_cpus``: the leaderboard's Ray test failed that way beside this module's cluster under ``-n 2``)."""
+    code = ("from uavform_env.parallel import connect_ray\n"
+            "ray = connect_ray(None, 3)\n"
+            "print(int(ray.cluster_resources()['CPU']))\n")
+    env = {k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}
+    out = subprocess.run([sys.executable, "-c", code], cwd=REPO, env=env, capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split()[-1] == "3"                # its own 3 CPUs, not the cluster's 2

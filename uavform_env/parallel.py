@@ -34,8 +34,9 @@ def connect_ray(address: str | None, num_cpus: int):
     """Import Ray and join a cluster; returns the ``ray`` module.
 
     ``address`` (else the ``RAY_ADDRESS`` environment variable) names an existing cluster to join
-    ("auto", "HOST:PORT" or "ray://HOST:PORT"); without one a local Ray with ``num_cpus`` CPUs starts.
-    A Ray already initialised in this process is used as it is.
+    ("auto", "HOST:PORT" or "ray://HOST:PORT"); without one a new local Ray with ``num_cpus`` CPUs starts
+    (``address="local"``: Ray would otherwise join whatever cluster last started on this machine, e.g. another
+    process's, and refuse ``num_cpus``). A Ray already initialised in this process is used as it is.
     """
     try:
         import ray
@@ -50,7 +51,7 @@ def connect_ray(address: str | None, num_cpus: int):
             except (ConnectionError, RuntimeError, TimeoutError) as e:
                 raise ValueError(f"Ray address {address!r}: could not join the cluster ({e})") from e
         else:
-            ray.init(num_cpus=num_cpus, include_dashboard=False, log_to_driver=False)
+            ray.init(address="local", num_cpus=num_cpus, include_dashboard=False, log_to_driver=False)
     return ray
 
 
