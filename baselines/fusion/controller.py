@@ -333,11 +333,10 @@ class FusionExpert(OnboardPolicy):
         docking = view.is_leader and self._final_approach(view, target.goal, obstacles, radius, cfg,
                                                           cfg.approach_radius)
         fence = geofence_points(pos, local.reach, view.bounds_lo, view.bounds_hi, cfg.geofence_spacing)
-        if cfg.fence_margin:                    # the margin's cap counts the world's bounds as obstacles too
-            margin = wind_margin(mem, cfg, min(clearance_now, fence_clearance(pos, view.bounds_lo, view.bounds_hi,
-                                                                                lim.r_uav)), lim.r_safe)
-        else:
-            margin = wind_margin(mem, cfg, clearance_now, lim.r_safe)
+        cap = clearance_now                     # with ``fence_margin`` the cap counts the world's bounds too
+        if cfg.fence_margin:
+            cap = min(cap, fence_clearance(pos, view.bounds_lo, view.bounds_hi, lim.r_uav))
+        margin = wind_margin(mem, cfg, cap, lim.r_safe)
         radii = np.full(len(obstacles), radius + margin)
         if len(fence):                          # the fence points have radius 0, plus the margin if ``fence_margin``
             obstacles = np.concatenate([obstacles, fence])
