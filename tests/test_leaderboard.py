@@ -20,7 +20,7 @@ from uavform_env.evaluation import (WALL_CLOCK_METRICS, bootstrap_ci, list_suite
                                     run_suite, write_tables)
 from uavform_env.evaluation.runner import RESULTS_FILE
 from uavform_env.evaluation.suites import Episode, Suite
-from uavform_env.evaluation.table import summarize, to_markdown, to_marl_eval
+from uavform_env.evaluation.table import separations, summarize, to_markdown, to_marl_eval
 from uavform_env.metrics import METRIC_NAMES
 from uavform_env.scenarios import list_scenarios
 
@@ -370,6 +370,33 @@ def test_cli_show_and_errors(tiny, serial_run, capsys):
     assert "unknown suite 'v9'" in capsys.readouterr().err
     assert main(["leaderboard", "--show", str(out / "nowhere")]) == 2
     assert "suite.json is missing" in capsys.readouterr().err
+
+
+def _row(policy: str, ci: tuple[float, float], family: dict) -> dict:
+    stat = lambda lo, hi: {"mean": (lo + hi) / 2, "ci_low": lo, "ci_high": hi, "n": 10}
+    return {"policy": policy, "metrics": {"success": stat(*ci)},
+            "groups": {"family": {g: {"success": stat(*c)} for g, c in family.items()}, "disturbance": {}}}
+
+
+def test_separations_known_answers():
+    summary = {"policies": [_row("top", (0.6, 0.8), {"a": (0.5, 0.7), "b": (0.9, 1.0)}),
+                            _row("low", (0.1, 0.3), {"a": (0.1, 0.49), "b": (0.2, 0.4)}),
+                            _row("touch", (0.5, 0.6), {"a": (0.7, 0.9)}),
+                            _row("high", (0.81, 0.9), {"a": (0.71, 0.8), "b": (0.0, 0.95)})]}
+    assert separations(summary) == [("all episodes", ["low"], ["high"], ["touch"]),
+                                    ("a", ["low"], ["high"], ["touch"]),   # a CI that touches overlaps
+                                    ("b", ["low"], [], ["high"])]          # "touch" did not play b
+
+
+def test_readme_v1_tables_are_generated_from_the_published_results(capsys):
+    """The README's v1 tables are what `--show docs/leaderboard/v1 --brief` prints, not numbers written beside it."""
+    readme = (REPO / "README.md").read_text()
+    begin = "<!-- generated: uavform leaderboard --show docs/leaderboard/v1 --brief -->\n"
+    block = readme[readme.index(begin) + len(begin):readme.index("<!-- end generated -->")]
+    assert main(["leaderboard", "--show", str(REPO / "docs" / "leaderboard" / "v1"), "--brief"]) == 0
+    assert capsys.readouterr().out == block
+    assert main(["leaderboard", "--brief"]) == 2
+    assert "--brief goes with --show" in capsys.readouterr().err
 
 
 # ---------------------------------------------------------------- suite v1, outcomes, probability of improvement

@@ -233,14 +233,18 @@ def _scenarios(args) -> int:
 def _leaderboard(args) -> int:
     from .evaluation.runner import read_manifest, read_results, run_suite
     from .evaluation.suites import load_suite, suite_from_manifest
-    from .evaluation.table import summarize, to_markdown, write_tables
+    from .evaluation.table import summarize, to_brief, to_markdown, write_tables
 
+    if args.brief and not args.show:
+        raise ValueError("--brief goes with --show RESULTS_DIR")
     if args.show:
         manifest = read_manifest(args.show)
         if manifest is None:
             raise ValueError(f"--show {args.show!r}: no leaderboard results there (suite.json is missing)")
         suite = suite_from_manifest(manifest, f"{args.show}/suite.json")
-        print(to_markdown(summarize(suite, read_results(args.show))), end="")
+        records = read_results(args.show)
+        print(to_brief(summarize(suite, records, improvement=False)) if args.brief
+              else to_markdown(summarize(suite, records)), end="")
         return 0
     if args.list:
         for episode in load_suite(args.suite).episodes:
@@ -360,6 +364,9 @@ def build_parser() -> argparse.ArgumentParser:
     lb.add_argument("--time-limit", type=number_in(0.0, None, lo_open=True), default=900.0,
                     help="wall-clock seconds per episode before it is recorded as failed (default: 900)")
     lb.add_argument("--show", metavar="RESULTS_DIR", default=None, help="print the table of a results folder and exit")
+    lb.add_argument("--brief", action="store_true",
+                    help="with --show: the short tables a README shows (ranking, success per preset and family, "
+                         "where the top policy's CI parts from the others')")
     lb.add_argument("--list", action="store_true", help="print the suite's episode ids, one per line, and exit")
     lb.add_argument("--quiet", action="store_true", help="no progress bar")
     lb.set_defaults(func=_leaderboard)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 from dataclasses import asdict, dataclass
+from functools import cached_property
 from importlib import resources
 from pathlib import Path
 
@@ -85,9 +86,10 @@ class Suite:
     description: str
     episodes: tuple[Episode, ...]
 
-    @property
+    @cached_property
     def hash(self) -> str:
-        """SHA-256 (first 16 hex digits) of the canonical JSON of the episode list."""
+        """SHA-256 (first 16 hex digits) of the canonical JSON of the episode list (worked out once: the suite is
+        frozen)."""
         doc = json.dumps([e.to_dict() for e in self.episodes], sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(doc.encode("utf-8")).hexdigest()[:16]
 

@@ -101,8 +101,9 @@ def _rate(values: list[dict], metric: str) -> dict:
     return {"mean": mean, "ci_low": lo, "ci_high": hi, "n": int(np.isfinite(column).sum())}
 
 
-def summarize(suite: Suite, records: list[dict]) -> dict:
-    """Rank the policies found in ``records`` (results of ``suite``) and give every metric's mean and CI."""
+def summarize(suite: Suite, records: list[dict], improvement: bool = True) -> dict:
+    """Rank the policies found in ``records`` (results of ``suite``) and give every metric's mean and CI;
+    ``improvement=False`` leaves out the pairwise probabilities of improvement (the slow part)."""
     order = {e.key: i for i, e in enumerate(suite.episodes)}
     by_policy: dict[str, dict[str, dict]] = {}
     for r in records:
@@ -139,18 +140,18 @@ def summarize(suite: Suite, records: list[dict]) -> dict:
     rows.sort(key=_score_key)
     for rank, row in enumerate(rows, 1):
         row["rank"] = rank
-    improvement = {}
+    pairs = {}
     for a in rows:
         for b in rows:
-            if a is not b:
+            if improvement and a is not b:
                 shared = [k for k in values_of[a["policy"]] if k in values_of[b["policy"]]]
                 p, lo, hi = probability_of_improvement([values_of[a["policy"]][k] for k in shared],
                                                        [values_of[b["policy"]][k] for k in shared])
-                improvement[f"{a['policy']} > {b['policy']}"] = {"mean": p, "ci_low": lo, "ci_high": hi,
-                                                                  "n": len(shared)}
+                pairs[f"{a['policy']} > {b['policy']}"] = {"mean": p, "ci_low": lo, "ci_high": hi,
+                                                            "n": len(shared)}
     return {"suite": suite.name, "suite_hash": suite.hash, "episodes": len(suite.episodes),
             "ranking": [f"{m} ({better} is better)" for m, better in RANKING], "policies": rows,
-            "improvement": improvement}
+            "improvement": pairs}
 
 
 def ranking_key(means: dict) -> tuple:
@@ -168,6 +169,51 @@ def _score_key(row: dict) -> tuple:
     return (*ranking_key({m: row["metrics"][m]["mean"] for m, _ in RANKING}), row["policy"])
 
 
+def separations(summary: dict) -> list[tuple[str, list[str], list[str], list[str]]]:
+    """Where the top-ranked policy's success CI parts from the others': one row for all episodes, then one per
+    family and per disturbance preset, each (group, the policies whose 95% CI lies wholly below the top
+    policy's, wholly above it, overlapping it), the policies in rank order. Groups a policy did not play are left
+    out of its row."""
+    top, others = summary["policies"][0], summary["policies"][1:]
+    groups = [("all episodes", lambda r: r["metrics"]["success"])]
+    for label in ("family", "disturbance"):
+        for g in sorted({g for r in summary["policies"] for g in r["groups"][label]}):
+            groups.append((g, lambda r, label=label, g=g: r["groups"][label].get(g, {}).get("success")))
+    out = []
+    for name, stat_of in groups:
+        mine, split = stat_of(top), ([], [], [])
+        for r in others if mine is not None else ():
+            theirs = stat_of(r)
+            if theirs is not None:
+                side = 0 if theirs["ci_high"] < mine["ci_low"] else 1 if theirs["ci_low"] > mine["ci_high"] else 2
+                split[side].append(r["policy"])
+        out.append((name, *split))
+    return out
+
+
+def _names(policies: list[str]) -> str:
+    return ", ".join(f"`{p}`" for p in policies) or "-"
+
+
+def to_brief(summary: dict) -> str:
+    """The short form a README shows: the ranked table, success / collision per disturbance preset and success
+    per family (means only), and where the top policy's success CI parts from the others'."""
+    rows = summary["policies"]
+    presets = sorted({g for r in rows for g in r["groups"]["disturbance"]})
+    families = sorted({g for r in rows for g in r["groups"]["family"]})
+    out = [*_ranked_table(summary), "", "| policy | " + " | ".join(presets + families) + " |",
+           "|" + "---|" * (1 + len(presets) + len(families))]
+    for r in rows:
+        dist, fam = r["groups"]["disturbance"], r["groups"]["family"]
+        cells = [f"{dist[g]['success']['mean']:.3g} / {dist[g]['collision']['mean']:.3g}" if g in dist else "-"
+                 for g in presets]
+        cells += [f"{fam[g]['success']['mean']:.3g}" if g in fam else "-" for g in families]
+        out.append(f"| `{r['policy']}` | " + " | ".join(cells) + " |")
+    out += ["", f"Where the success CI of `{rows[0]['policy']}` parts from the others' (95% bootstrap CIs):", "",
+            *_separation_table(summary)]
+    return "\n".join(out) + "\n"
+
+
 def ci_cell(stat: dict) -> str:
     """A table cell: mean [95% CI]; "absent" for a metric no record holds, n/a for an unknown value."""
     if stat.get("recorded", 1) == 0:
@@ -181,8 +227,22 @@ def _label(metric: str) -> str:
     return f"{metric} ({UNITS[metric]})" if metric in UNITS else metric
 
 
+def _ranked_table(summary: dict) -> list[str]:
+    header = ["rank", "policy", "episodes", "failed", *(_label(m) for m, _ in RANKING)]
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for r in summary["policies"]:
+        cells = [str(r["rank"]), f"`{r['policy']}`", str(r["episodes"]), str(r["failed"]),
+                 *(ci_cell(r["metrics"][m]) for m, _ in RANKING)]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def _separation_table(summary: dict) -> list[str]:
+    return ["| episodes | ahead of (CIs apart) | behind (CIs apart) | CIs overlap |", "|---|---|---|---|",
+            *(f"| {g} | {_names(a)} | {_names(b)} | {_names(o)} |" for g, a, b, o in separations(summary))]
+
+
 def to_markdown(summary: dict) -> str:
-    ranked = [m for m, _ in RANKING]
     lines = [f"# Leaderboard: suite `{summary['suite']}` (hash `{summary['suite_hash']}`)", "",
              f"{summary['episodes']} episodes per policy. Cells: mean [95% bootstrap CI] over episodes. "
              f"Ranked by {', then '.join(summary['ranking'])}.", ""]
@@ -193,12 +253,7 @@ def to_markdown(summary: dict) -> str:
     codes = sorted({c for r in summary["policies"] for c in r["code"]})
     lines += [f"Code: {', '.join(f'`{c}`' for c in codes)}" + (" (**mixed**: rows come from different code)"
                                                                if len(codes) > 1 else ""), ""]
-    header = ["rank", "policy", "episodes", "failed", *(_label(m) for m in ranked)]
-    lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    for r in summary["policies"]:
-        cells = [str(r["rank"]), f"`{r['policy']}`", str(r["episodes"]), str(r["failed"]),
-                 *(ci_cell(r["metrics"][m]) for m in ranked)]
-        lines.append("| " + " | ".join(cells) + " |")
+    lines += _ranked_table(summary)
     rows = summary["policies"]
     names = " | ".join(f"`{r['policy']}`" for r in rows)
     head = [f"| {{}} | {names} |", "|" + "---|" * (len(rows) + 1)]
@@ -221,6 +276,11 @@ def to_markdown(summary: dict) -> str:
                                                       f"({stat['success']['n']})")
             lines.append(f"| {g} | " + " | ".join(cells) + " |")
     if len(rows) > 1:
+        lines += ["", f"## Where the success CIs part from `{rows[0]['policy']}`'s", "",
+                  "For all episodes, each family and each disturbance preset: the policies whose 95% success CI "
+                  "lies wholly below the top-ranked policy's (it is ahead of them), wholly above it (behind), "
+                  "or overlaps it.", "", *_separation_table(summary)]
+    if len(rows) > 1 and summary["improvement"]:
         lines += ["", "## Probability of improvement", "",
                   "P(row > column): over the episodes both played, how often the row's outcome beats the column's "
                   "on the score above (ties count 1/2), with a 95% paired bootstrap CI; 0.5 is a tie.", "",
