@@ -677,9 +677,9 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, obstacles, radii, movers_pos, mo
     """Window sampling, rollout, clearance, admissibility and the eq. 12 score of every sample.
 
     The window is [v_lo, v_hi] x [w_lo, w_hi]; ``params``: the fields of a ``_Params``, in order, as a plain
-    tuple, made a ``_Params`` again here (as ``vfh3d._cycle_kernel`` does with its setup: numba types a named
-    tuple passed from Python on its slow path, about 10 us a call). ``exact_clearance`` evaluates inadmissible
-    samples to the end instead of stopping early.
+    tuple, made a ``_Params`` again here (as ``vfh3d._cycle_kernel`` does with its setup: numba types a new named
+    tuple passed from Python on its slow path, about 5 us a call more). ``exact_clearance`` evaluates
+    inadmissible samples to the end instead of stopping early.
     """
     p = _Params(*params)
     dt, n_steps, vz, drift_x, drift_y = p.dt, p.n_steps, p.vz, p.drift_x, p.drift_y
