@@ -676,17 +676,16 @@ class _Params(NamedTuple):
 def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, obstacles, radii, movers_pos, movers_vel, params, exact_clearance):
     """Window sampling, rollout, clearance, admissibility and the eq. 12 score of every sample.
 
-    The window is [v_lo, v_hi] x [w_lo, w_hi]; ``params`` holds the fields of a ``_Params``, in order.
-    ``exact_clearance`` evaluates inadmissible samples to the end instead of stopping early. (One tuple:
-    numba types each argument passed in Python, about 2.5 us a call; a plain tuple, since a new named
-    tuple every call takes numba's slow typing path, about 10 us more.)
+    The window is [v_lo, v_hi] x [w_lo, w_hi]; ``params``: the fields of a ``_Params``, in order, as a plain
+    tuple, made a ``_Params`` again here (as ``vfh3d._cycle_kernel`` does with its setup: numba types a new named
+    tuple passed from Python on its slow path, about 5 us a call more). ``exact_clearance`` evaluates
+    inadmissible samples to the end instead of stopping early.
     """
-    (v_res, w_res, vz, dt, n_steps, r_uav, a_max, v_max, w_max, D_cap, dist_cap, R_uu, goal_x, goal_y, la_x, la_y,
-     heading_from_current, lam, progress_reach, vel_target, rot_ref, alpha, kappa, alpha_per_candidate, beta, gamma,
-     eps, minmax, drift_x, drift_y) = params
-    w_axis = _axis(w_lo, w_hi, w_res)
+    p = _Params(*params)
+    dt, n_steps, vz, drift_x, drift_y = p.dt, p.n_steps, p.vz, p.drift_x, p.drift_y
+    w_axis = _axis(w_lo, w_hi, p.w_res)
     n_w = w_axis.size
-    vs, ws = _window_grid(v_lo, v_hi, w_lo, w_hi, v_res, w_res)
+    vs, ws = _window_grid(v_lo, v_hi, w_lo, w_hi, p.v_res, p.w_res)
     n_samples = vs.shape[0]
     x0, y0, z0, psi0 = state[0], state[1], state[2], state[3]
     yaw = _yaw_table(psi0, w_axis, dt, n_steps)
@@ -711,14 +710,14 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, obstacles, radii, movers_pos, mo
     dist = np.empty(n_samples)
     vel = np.empty(n_samples)
     rot = np.empty(n_samples)
-    rho_d = math.hypot(goal_x - x0, goal_y - y0)
-    bearing_now = math.atan2(goal_y - y0, goal_x - x0)
+    rho_d = math.hypot(p.goal_x - x0, p.goal_y - y0)
+    bearing_now = math.atan2(p.goal_y - y0, p.goal_x - x0)
     # no rollout gets farther than the fastest one; beyond its reach plus the clearance cap nothing counts
     far = (dt * n_steps * (math.sqrt(v_hi * v_hi + vz * vz) + math.hypot(drift_x, drift_y))
-           + max(D_cap, v_hi * v_hi / (2.0 * a_max)) + r_uav)
-    obstacles, rads, lows = _nearby(obstacles, radii, x0, y0, z0, far, r_uav)
-    d_brake = vs * vs / (2.0 * a_max)
-    caps = np.maximum(D_cap, d_brake)
+           + max(p.D_cap, v_hi * v_hi / (2.0 * p.a_max)) + p.r_uav)
+    obstacles, rads, lows = _nearby(obstacles, radii, x0, y0, z0, far, p.r_uav)
+    d_brake = vs * vs / (2.0 * p.a_max)
+    caps = np.maximum(p.D_cap, d_brake)
     stop_below = np.full(n_samples, -math.inf) if exact_clearance else d_brake
     # every search starts at its cap or an attained value; one candidate list serves all rollouts
     start = _search_starts(paths, spheres, obstacles, rads, caps, stop_below)
@@ -728,33 +727,33 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, obstacles, radii, movers_pos, mo
         c = _static_clearance(path, spheres[i], reach[i], obstacles, rads, lows, keep, mask, start[i], stop_below[i])
         ok = c > 0.0 and c >= d_brake[i]
         if (ok or exact_clearance) and movers_pos.shape[0] > 0:
-            c_mover = _mover_clearance(path, track, R_uu)
+            c_mover = _mover_clearance(path, track, p.R_uu)
             ok = ok and c_mover >= 0.0
             c = min(c, c_mover)
         clearance[i] = c
-        dist[i] = min(c, dist_cap)
+        dist[i] = min(c, p.dist_cap)
         admissible[i] = ok
         ex, ey, psi_end = path[n_steps - 1, 0], path[n_steps - 1, 1], yaw[i % n_w, n_steps - 1, 0]
         endpoint[i, :] = path[n_steps - 1]
-        alignment[i] = _alignment(la_x - x0, la_y - y0, ex - x0, ey - y0, psi_end)
-        bearing = bearing_now if heading_from_current else math.atan2(goal_y - ey, goal_x - ex)
+        alignment[i] = _alignment(p.la_x - x0, p.la_y - y0, ex - x0, ey - y0, psi_end)
+        bearing = bearing_now if p.heading_from_current else math.atan2(p.goal_y - ey, p.goal_x - ex)
         h = _heading(bearing, psi_end)
-        if lam < 1.0:  # E8 (eq. 8): blend with the distance progress Dg
-            progress = 1.0 - math.hypot(goal_x - ex, goal_y - ey) / (rho_d + progress_reach)
-            h = lam * h + (1.0 - lam) * progress
+        if p.lam < 1.0:  # E8 (eq. 8): blend with the distance progress Dg
+            progress = 1.0 - math.hypot(p.goal_x - ex, p.goal_y - ey) / (rho_d + p.progress_reach)
+            h = p.lam * h + (1.0 - p.lam) * progress
         heading[i] = h
-        vel[i] = v / v_max if vel_target < 0.0 else 1.0 - abs(v - vel_target) / v_max
-        rot[i] = 1.0 - abs(w - rot_ref) / w_max
-    h_hat = _normalise(heading, admissible, minmax)
-    d_hat = _normalise(dist, admissible, minmax)
-    v_hat = _normalise(vel, admissible, minmax)
-    r_hat = _normalise(rot, admissible, minmax)
+        vel[i] = v / p.v_max if p.vel_target < 0.0 else 1.0 - abs(v - p.vel_target) / p.v_max
+        rot[i] = 1.0 - abs(w - p.rot_ref) / p.w_max
+    h_hat = _normalise(heading, admissible, p.minmax)
+    d_hat = _normalise(dist, admissible, p.minmax)
+    v_hat = _normalise(vel, admissible, p.minmax)
+    r_hat = _normalise(rot, admissible, p.minmax)
     score = np.empty(n_samples)
     for i in range(n_samples):
         score[i] = -math.inf
         if admissible[i]:
-            a = _heading_weight(alignment[i], alpha, kappa) if alpha_per_candidate else alpha
-            score[i] = a * h_hat[i] + beta * d_hat[i] + gamma * v_hat[i] + eps * r_hat[i]
+            a = _heading_weight(alignment[i], p.alpha, p.kappa) if p.alpha_per_candidate else p.alpha
+            score[i] = a * h_hat[i] + p.beta * d_hat[i] + p.gamma * v_hat[i] + p.eps * r_hat[i]
     return _select(score, vs, ws), vs, ws, score, clearance, admissible, endpoint, alignment
 
 
@@ -893,7 +892,7 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
                      float(cfg.kappa), per_candidate, float(cfg.beta), float(cfg.gamma),
                      float(_rotation_weight(cfg, clearance_now, prev_alignment)), cfg.norm == "minmax",
                      drift_x, drift_y)
-    params = tuple(params)             # the kernel's fields in _Params' order (see _plan_kernel for why plain)
+    params = tuple(params)             # plain: see _plan_kernel
 
     def run(v_lo_, v_hi_, w_lo_, w_hi_, exact_clearance):
         return _plan_kernel(state, v_lo_, v_hi_, w_lo_, w_hi_, obstacles, radii, movers_pos, movers_vel, params,
