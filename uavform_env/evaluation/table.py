@@ -169,6 +169,11 @@ def _score_key(row: dict) -> tuple:
     return (*ranking_key({m: row["metrics"][m]["mean"] for m, _ in RANKING}), row["policy"])
 
 
+def _group_names(summary: dict, label: str) -> list[str]:
+    """The sorted names of the ``label`` groups ("family" or "disturbance") any policy played."""
+    return sorted({g for r in summary["policies"] for g in r["groups"][label]})
+
+
 def separations(summary: dict) -> list[tuple[str, list[str], list[str], list[str]]]:
     """Where the top-ranked policy's success CI parts from the others': one row for all episodes, then one per
     family and per disturbance preset, each (group, the policies whose 95% CI lies wholly below the top
@@ -177,7 +182,7 @@ def separations(summary: dict) -> list[tuple[str, list[str], list[str], list[str
     top, others = summary["policies"][0], summary["policies"][1:]
     groups = [("all episodes", lambda r: r["metrics"]["success"])]
     for label in ("family", "disturbance"):
-        for g in sorted({g for r in summary["policies"] for g in r["groups"][label]}):
+        for g in _group_names(summary, label):
             groups.append((g, lambda r, label=label, g=g: r["groups"][label].get(g, {}).get("success")))
     out = []
     for name, stat_of in groups:
@@ -199,8 +204,7 @@ def to_brief(summary: dict) -> str:
     """The short form a README shows: the ranked table, success / collision per disturbance preset and success
     per family (means only), and where the top policy's success CI parts from the others'."""
     rows = summary["policies"]
-    presets = sorted({g for r in rows for g in r["groups"]["disturbance"]})
-    families = sorted({g for r in rows for g in r["groups"]["family"]})
+    presets, families = _group_names(summary, "disturbance"), _group_names(summary, "family")
     out = [*_ranked_table(summary), "", "| policy | " + " | ".join(presets + families) + " |",
            "|" + "---|" * (1 + len(presets) + len(families))]
     for r in rows:
@@ -265,7 +269,7 @@ def to_markdown(summary: dict) -> str:
     seen = [o for o in OUTCOMES if any(o in r["outcomes"] for r in rows)]
     lines += [f"| {o} | " + " | ".join(str(r["outcomes"].get(o, 0)) for r in rows) + " |" for o in seen]
     for label in ("family", "disturbance"):
-        groups = sorted({g for r in rows for g in r["groups"][label]})
+        groups = _group_names(summary, label)
         lines += ["", f"## Success and collision rate per {label}", "",
                   "Cells: success [95% CI] / collision [95% CI] (episodes).", "", head[0].format(label), head[1]]
         for g in groups:
