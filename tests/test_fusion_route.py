@@ -46,3 +46,32 @@ def test_counting_the_turn_keeps_the_leader_out_of_the_maze_pocket_it_otherwise_
     a pocket its map shows closed only on arrival, and times out; with it it flies on east and arrives by step 400."""
     assert fly_maze(True, 400) == 1
     assert fly_maze(False, 400) == 0
+
+
+def heading_route_in_the_open(keep_margin: float) -> np.ndarray:
+    """The leader's route choice (``FusionExpert._heading_route``) at a cell centre heading east, the goal 10 m east and
+    5 m north of it (cell centres, so A*'s pruned path is the straight segment), an empty
+    20 m x 20 m raster: A*'s direct route costs its length 11.18 + its turn atan(1/2) x 2.29 = 12.24, the route that
+    first flies L_a = 3 m straight on 3 + 8.60 + atan(5/7) x 2.29 = 13.02 (raster paths differ by a few cm)."""
+    from types import SimpleNamespace
+
+    from baselines.astar import Raster
+    from uavform_env.config import UAVLimits
+
+    policy = FusionExpert(replace(ExpertConfig(), route_keep_margin=keep_margin))
+    policy.raster = Raster((-5.0, -5.0), policy.config.astar.res_g, (40, 40))
+    lim = UAVLimits()
+    view = SimpleNamespace(state=np.array([0.25, 0.25, 3.0, 0.0, 0.5, 0.0, 0.0]), limits=lim)
+    blocked = np.zeros(policy.raster.shape, bool)
+    goal = np.array([10.25, 5.25])
+    path = policy._search(blocked, view.state[:2], goal, lim, 0.0, 0.0)
+    return policy._heading_route(view, blocked, goal, path, 0.0).points
+
+
+@pytest.mark.parametrize("margin, straight_on", [(0.0, False), (0.5, False), (1.0, True), (2.0, True)])
+def test_route_keep_margin_flies_on_unless_the_turn_saves_more_than_the_margin(margin, straight_on):
+    """Known answer: the route straight on costs 0.78 m more; it is kept with a margin above that, not below."""
+    points = heading_route_in_the_open(margin)
+    first_leg = points[1] - points[0]
+    assert (abs(math.atan2(first_leg[1], first_leg[0])) < 1e-9) == straight_on
+    assert np.allclose(points[0], [0.25, 0.25]) and np.allclose(points[-1], [10.25, 5.25])

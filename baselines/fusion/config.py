@@ -173,6 +173,11 @@ class ExpertConfig(Config):
                        (``controller.route_cost``): with the E11 cost on the change of the turn rate the leader
                        turned at once onto a route only as long as one straight on, and in the unknown
                        ``classic-2d`` "extended" maze that route led into a pocket seen closed only on arrival [X]
+    route_keep_margin  (with ``route_turn_cost``) the route straight on is flown unless the direct route costs at least
+                       this many metres less (0: the cheaper of the two): the two costs are estimates through unseen
+                       space, and a near tie (0.1-0.3 m of 18 m in the ``classic-2d`` "extended" maze) was decided
+                       by a few degrees of heading at the first replan after the maze came into view, turning the
+                       leader into a pocket whose exit reads closed only on arrival [X]
     way_misses         the ``passable`` raster's way through a map column (a run of non-occupied voxels tall enough
                        for the UAV) needs a voxel holding ``way_misses`` of the map's miss updates net of its hits
                        (crossed by rays in that many scans, or in as many as the UAV has made; or at the clamp p_min),
@@ -309,6 +314,8 @@ class ExpertConfig(Config):
     # -- gusts (issue 13, session 9 "s9gusty")
     wind_margin_share: float = 0.8
     fence_margin: bool = True
+    # -- route choice in an unknown maze (issue 13, session 10 "s10maze")
+    route_keep_margin: float = 1.0
 
     BOUNDS: ClassVar[dict] = {
         "dwa": instance_of(DWAConfig), "vfh": instance_of(VFHConfig), "astar": instance_of(AStarConfig),
@@ -334,7 +341,7 @@ class ExpertConfig(Config):
                                             "approach_radius", "guard_clearance", "guard_speed", "guard_gust_time",
                                             "guard_hover_speed", "path_margin",
                                             "margin_detour", "repark_time", "repark_radius",
-                                            "gust_allowance")},
+                                            "gust_allowance", "route_keep_margin")},
         **{name: in_range(0.0, lo_open=True) for name in ("wind_tau", "gust_tau")},
         "leader_speed_cap": in_range(0.0, 1.0, lo_open=True),
         "yield_factor": in_range(0.0, 1.0),

@@ -502,7 +502,7 @@ class FusionExpert(OnboardPolicy):
         onward = self._search(blocked, ahead, goal, lim, margin, cfg.margin_detour)
         if onward is None:
             return path
-        if L + route_cost(onward.points, psi, L, metres_per_rad) < cost:      # still heading psi at the point ahead
+        if L + route_cost(onward.points, psi, L, metres_per_rad) < cost + cfg.route_keep_margin:   # heading psi ahead
             return GlobalPath(np.vstack([pos, onward.points]), cfg.astar.window, cfg.astar.allow_corner_cut)
         return path
 
