@@ -31,7 +31,8 @@ from ..vertical import BLOCKED, CLIMB, LEVEL, PlannerMemory
 from ..vfh3d import VFHPlanner
 from .config import ExpertConfig
 from .kernels import (closest_approach_of, columns_without_gap, gap_altitude_kernel, in_sphere, live_within,
-                      mark_cells, open_level_way, predicted_movers, segment_clear, surface_clearance, trail_lags)
+                      mark_cells, open_level_way, predicted_movers, segment_clear, slot_errors, surface_clearance,
+                      trail_lags)
 from .rules import (RULES, Command, Cycle, bearing_error, clamp, drift_persistence, fence_clearance, gust_speed,
                     leader_parked, station_keep, wind_estimate, wind_margin)
 
@@ -572,8 +573,9 @@ class FusionExpert(OnboardPolicy):
         goal = pred_xy + turned_pred[row]
         heading_l = np.array([math.cos(lead[PSI]), math.sin(lead[PSI])])
         lead_moving = not leader_parked(view, cfg)
-        a_j = goal - view.state[:2] + (cfg.k_h * heading_l if lead_moving else 0.0)   # a parked slot is the target
-        lookahead = view.state[:2] + a_j
+        x, y = float(view.state[0]), float(view.state[1])            # floats: the array arithmetic's values, faster
+        k_hx, k_hy = (cfg.k_h * float(heading_l[0]), cfg.k_h * float(heading_l[1])) if lead_moving else (0.0, 0.0)
+        lookahead = np.array([x + ((float(goal[0]) - x) + k_hx), y + ((float(goal[1]) - y) + k_hy)])  # a_j = goal - p
         slot_now = lead[:2] + turned_now[row]
         trail = mem.trail
         if cfg.rejoin == "trail" and (not trail or np.hypot(*(lead[:2] - trail[-1])) >= cfg.trail_spacing):
@@ -733,14 +735,14 @@ def _gap_altitude(view, target_xy, z_pref: float, cfg: ExpertConfig) -> float | 
     occ = view.occupancy
     res = occ.resolution
     pos = view.state[:3]
-    d = np.asarray(target_xy, dtype=np.float64) - pos[:2]
-    dist = math.hypot(d[0], d[1])
+    dx, dy = float(target_xy[0]) - float(pos[0]), float(target_xy[1]) - float(pos[1])   # floats: no array glue
+    dist = math.hypot(dx, dy)
     if dist < 1e-6:
         return None
     ts = np.arange(res, min(cfg.gap_lookahead, dist + res), res)
     if ts.size == 0:
         return None
-    best = gap_altitude_kernel(tuple(occ.arrays()), occ.origin, res, pos, d / dist, ts, z_pref,
+    best = gap_altitude_kernel(tuple(occ.arrays()), occ.origin, res, pos, np.array([dx / dist, dy / dist]), ts, z_pref,
                                max(1, int(round(cfg.gap_depth / res))), lim.r_uav + lim.r_safe, lim.z_min, lim.z_max,
                                cfg.gap_margin)
     return None if math.isnan(best) else best
@@ -768,9 +770,8 @@ def _column_offsets(offsets: np.ndarray, spacing: float) -> np.ndarray:
 def _follower_errors(view) -> np.ndarray:
     """Horizontal slot errors of the followers, from their broadcasts and the leader's own pose."""
     s = view.state
-    slots = s[:2] + _rotated(s[PSI], view.offsets[view.neighbour_ids])
-    alive = view.neighbour_alive
-    return np.linalg.norm(view.neighbour_states[alive, :2] - slots[alive], axis=1)
+    return slot_errors(float(s[0]), float(s[1]), float(np.cos(s[PSI])), float(np.sin(s[PSI])), view.offsets,
+                       view.neighbour_ids, view.neighbour_states, view.neighbour_alive)
 
 
 def _slot_brake_cap(v_leader: float, distance: float, a_max: float) -> float:
