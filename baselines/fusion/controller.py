@@ -289,7 +289,7 @@ class FusionExpert(OnboardPolicy):
         gap_z = _gap_altitude(view, target.lookahead, z_slot, cfg)
         z_goal = z_slot if gap_z is None else gap_z
         aim = np.array([target.lookahead[0], target.lookahead[1], z_goal])
-        if math.dist(aim, pos) < 1e-6:                         # on the target: 3D VFH+ looks along the heading
+        if math.dist(aim.tolist(), pos.tolist()) < 1e-6:       # on the target: 3D VFH+ looks along the heading
             aim = pos + np.array([math.cos(s[PSI]), math.sin(s[PSI]), 0.0])
         to_aim = aim - pos
         close = live_within(pos, local.movers_pos, view.neighbour_alive, cfg.vfh_neighbour_radius)
@@ -338,12 +338,13 @@ class FusionExpert(OnboardPolicy):
         if cfg.fence_margin:
             cap = min(cap, fence_clearance(pos, view.bounds_lo, view.bounds_hi, lim.r_uav))
         margin = wind_margin(mem, cfg, cap, lim.r_safe)
-        radii = np.full(len(obstacles), radius + margin)
+        radii = np.empty(len(obstacles))
+        radii.fill(radius + margin)                 # np.full's result, without its wrapper
         if len(fence):                          # the fence points have radius 0, plus the margin if ``fence_margin``
             obstacles = np.concatenate([obstacles, fence])
             radii = np.concatenate([radii, np.full(len(fence), margin if cfg.fence_margin else 0.0)])
         alive = view.neighbour_alive
-        alive_pos, alive_vel = (local.movers_pos, local.movers_vel) if alive.all() else \
+        alive_pos, alive_vel = (local.movers_pos, local.movers_vel) if all(alive.tolist()) else \
             (local.movers_pos[alive], local.movers_vel[alive])
         still = mem.wind[0] == 0.0 and mem.wind[1] == 0.0
         drift = mem.wind * drift_persistence(lim, dwa_cfg.T_p) if cfg.wind_drift and not still else None
@@ -699,7 +700,7 @@ def _occupied_within(view, local: _Local, point: np.ndarray, radius: float) -> b
     """``view.occupancy.occupied_within(point, radius)``, answered from the cycle's local voxels when they hold every
     voxel that query could find (leaf level, the ball around ``point`` inside the local sphere with a voxel to
     spare): any leaf centre at squared distance <= radius^2, the map kernel's test in its arithmetic."""
-    if local.level == 0 and math.dist(point, view.state[:3]) + radius + view.occupancy.resolution <= local.reach:
+    if local.level == 0 and math.dist(point.tolist(), view.state[:3].tolist()) + radius + view.occupancy.resolution <= local.reach:
         return not segment_clear(local.obstacles, point, point, radius)    # a point segment: the ball's test
     return view.occupancy.occupied_within(point, radius)
 
@@ -782,7 +783,7 @@ def _slot_brake_cap(v_leader: float, distance: float, a_max: float) -> float:
 
 def _pursuit_cap(state, point, w_max: float, v_cap: float) -> float:
     """``v_cap`` lowered to the speed at which the turn-rate limit still steers onto ``point`` (pure pursuit)."""
-    d = point - state[:2]
+    d = (float(point[0]) - float(state[0]), float(point[1]) - float(state[1]))   # floats: no array glue
     dist = math.hypot(d[0], d[1])
     theta = abs(bearing_error(state, d)) if dist > 1e-9 else 0.0
     reach = dist / 2.0 if theta >= math.pi / 2 else dist / (2.0 * math.sin(theta)) if theta > 1e-9 else math.inf
