@@ -50,6 +50,7 @@ class _UAVMemory(PlannerMemory):
     trail: list = field(default_factory=list)
     trail_progress: int = 0
     pace_trail: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
+    pace_allowed: tuple = (None, None)          # (live-follower mask bytes, their slot ranges) of ``_pace_errors``
     arrived: bool = False
     park_psi: float | None = None
     park_marks: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
@@ -429,7 +430,10 @@ class FusionExpert(OnboardPolicy):
         if not errors.size:
             return errors
         alive = view.neighbour_alive
-        allowed = np.linalg.norm(view.offsets[view.neighbour_ids[alive], :2], axis=1)
+        key = alive.tobytes()                           # the slot ranges change only when a follower is lost
+        if mem.pace_allowed[0] != key:
+            mem.pace_allowed = key, np.linalg.norm(view.offsets[view.neighbour_ids[alive], :2], axis=1)
+        allowed = mem.pace_allowed[1]
         lags = trail_lags(trail, pos, view.neighbour_states[alive, :2], allowed)
         return np.minimum(errors, lags)
 
