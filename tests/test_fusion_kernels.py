@@ -8,9 +8,10 @@ import numpy as np
 from baselines.fusion import FusionExpert
 from baselines.fusion.controller import _occupied_within
 from baselines.fusion.kernels import (closest_approach, closest_approach_of, in_sphere, live_within, mark_cells,
-                                      nearest_live, predicted_movers)
+                                      nearest_live, predicted_movers, slot_errors)
 from uavform_env import parallel_env
 from uavform_env.dynamics import PSI, V, VZ
+from uavform_env.formation import slot_positions
 
 RNG = np.random.default_rng(7)
 
@@ -65,6 +66,25 @@ def test_predicted_movers_are_the_broadcasts_moved_one_cycle():
         expected = np.column_stack([ns[:, V] * np.cos(ns[:, PSI]), ns[:, V] * np.sin(ns[:, PSI]), ns[:, VZ]])
         assert np.array_equal(pos, ns[:, :3] + expected * 0.1)
         assert np.array_equal(vel, expected if predict else np.zeros_like(expected))
+
+
+def test_slot_errors_are_the_numpy_slot_distances_bit_for_bit():
+    """The leader's view of its followers' slot errors: ``slot_positions`` about the origin, shifted to the leader,
+    then ``np.linalg.norm`` of the live followers' differences (the expression ``slot_errors`` replaced)."""
+    for _ in range(200):
+        n = int(RNG.integers(1, 8))
+        offsets = RNG.normal(size=(n, 3)) * 3.0
+        ids = np.arange(1, n)
+        states = RNG.normal(size=(n - 1, 7)) * 10.0
+        alive = RNG.random(n - 1) < 0.7
+        x, y, psi = *(RNG.normal(size=2) * 10.0), float(RNG.uniform(-4.0, 4.0))
+        slots = np.array([x, y]) + slot_positions(np.zeros(2), psi, offsets[ids], 0.0)[:, :2]
+        expected = np.linalg.norm(states[alive, :2] - slots[alive], axis=1)
+        got = slot_errors(x, y, float(np.cos(psi)), float(np.sin(psi)), offsets, ids, states, alive)
+        assert np.array_equal(got, expected)
+    one = slot_errors(1.0, 2.0, 0.0, 1.0, np.array([[0.0, 0.0, 0.0], [-2.0, 0.0, 0.0]]), np.array([1]),
+                      np.array([[4.0, 4.0, 0, 0, 0, 0, 0]]), np.array([True]))
+    assert np.array_equal(one, [5.0])                  # slot (1, 0) after a quarter turn; the follower 3-4-5 away
 
 
 def test_slot_blocked_from_the_local_voxels_equals_the_map_query():

@@ -131,6 +131,8 @@ class FormationEnv(ParallelEnv):
         self._episode_seeds: np.random.Generator | None = None
         self.scenario: Scenario | None = None
         self._snapshot: SimpleNamespace | None = None            # see _onboard_snapshot
+        n = self.n_uavs                                          # row i: the UAVs other than i (onboard views)
+        self._others = _read_only(np.tile(np.arange(n, dtype=np.int64), (n, 1))[~np.eye(n, dtype=bool)].reshape(n, n - 1))
         self._map_store: MapStore | None = None                  # the onboard maps, cleared by every reset
         self._layouts: dict = {}                                 # see _layout
         self.world = None
@@ -420,14 +422,13 @@ class FormationEnv(ParallelEnv):
         own, so no view reaches the others' true states (through ``.base``)."""
         snap = self._snapshot
         if snap is None or snap.key is not self.broadcast:
-            n = self.n_uavs
-            others = np.tile(np.arange(n, dtype=np.int64), (n, 1))[~np.eye(n, dtype=bool)].reshape(n, n - 1)
-            copy = _read_only_copy
+            others = self._others
+            copy = _read_only_copy          # fresh arrays (the slots, fancy-indexed rows) need no copy
             snap = SimpleNamespace(
                 key=self.broadcast, states=[copy(row) for row in self.states], broadcast=copy(self.broadcast),
-                slots=copy(self._broadcast_slots()), goal=copy(self.goal), offsets=copy(self.offsets),
-                others=copy(others), neighbour_states=copy(self.broadcast[others]),
-                neighbour_alive=copy((self.active & self.present)[others]), maps=self._map_views,
+                slots=_read_only(self._broadcast_slots()), goal=copy(self.goal), offsets=copy(self.offsets),
+                others=others, neighbour_states=_read_only(self.broadcast[others]),
+                neighbour_alive=_read_only((self.active & self.present)[others]), maps=self._map_views,
                 bounds_lo=copy(self.scenario.bounds_lo), bounds_hi=copy(self.scenario.bounds_hi))
             self._snapshot = snap
         return snap

@@ -219,9 +219,9 @@ class MapStore:
         """Pyramid level ``depth``, brought up to date for the maps ``indices``."""
         if isinstance(depth, bool) or not isinstance(depth, (int, np.integer)) or not 0 <= depth < self.n_levels:
             raise ValueError(f"level={depth!r}: expected an integer in [0, {self.n_levels - 1}]")
-        idx = np.ascontiguousarray(indices, dtype=np.int64)
         if depth == 0:
             return self.levels[0]
+        idx = np.ascontiguousarray(indices, dtype=np.int64)
         stale = idx[self.dirty[idx, 0] <= self.dirty[idx, 3]]
         if stale.size and len(self.levels) > 1:  # bring the built levels up to date
             regions = self.dirty[stale].copy()

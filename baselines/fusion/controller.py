@@ -31,7 +31,8 @@ from ..vertical import BLOCKED, CLIMB, LEVEL, PlannerMemory
 from ..vfh3d import VFHPlanner
 from .config import ExpertConfig
 from .kernels import (closest_approach_of, columns_without_gap, gap_altitude_kernel, in_sphere, live_within,
-                      mark_cells, open_level_way, predicted_movers, segment_clear, surface_clearance, trail_lags)
+                      mark_cells, open_level_way, predicted_movers, segment_clear, slot_errors, surface_clearance,
+                      trail_lags)
 from .rules import (RULES, Command, Cycle, bearing_error, clamp, drift_persistence, fence_clearance, gust_speed,
                     leader_parked, station_keep, wind_estimate, wind_margin)
 
@@ -49,6 +50,7 @@ class _UAVMemory(PlannerMemory):
     trail: list = field(default_factory=list)
     trail_progress: int = 0
     pace_trail: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
+    pace_allowed: tuple = (None, None)          # (live-follower mask bytes, their slot ranges) of ``_pace_errors``
     arrived: bool = False
     park_psi: float | None = None
     park_marks: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
@@ -288,7 +290,7 @@ class FusionExpert(OnboardPolicy):
         gap_z = _gap_altitude(view, target.lookahead, z_slot, cfg)
         z_goal = z_slot if gap_z is None else gap_z
         aim = np.array([target.lookahead[0], target.lookahead[1], z_goal])
-        if math.dist(aim, pos) < 1e-6:                         # on the target: 3D VFH+ looks along the heading
+        if math.dist(aim.tolist(), pos.tolist()) < 1e-6:       # on the target: 3D VFH+ looks along the heading
             aim = pos + np.array([math.cos(s[PSI]), math.sin(s[PSI]), 0.0])
         to_aim = aim - pos
         close = live_within(pos, local.movers_pos, view.neighbour_alive, cfg.vfh_neighbour_radius)
@@ -337,12 +339,13 @@ class FusionExpert(OnboardPolicy):
         if cfg.fence_margin:
             cap = min(cap, fence_clearance(pos, view.bounds_lo, view.bounds_hi, lim.r_uav))
         margin = wind_margin(mem, cfg, cap, lim.r_safe)
-        radii = np.full(len(obstacles), radius + margin)
+        radii = np.empty(len(obstacles))
+        radii.fill(radius + margin)                 # np.full's result, without its wrapper
         if len(fence):                          # the fence points have radius 0, plus the margin if ``fence_margin``
             obstacles = np.concatenate([obstacles, fence])
             radii = np.concatenate([radii, np.full(len(fence), margin if cfg.fence_margin else 0.0)])
         alive = view.neighbour_alive
-        alive_pos, alive_vel = (local.movers_pos, local.movers_vel) if alive.all() else \
+        alive_pos, alive_vel = (local.movers_pos, local.movers_vel) if all(alive.tolist()) else \
             (local.movers_pos[alive], local.movers_vel[alive])
         still = mem.wind[0] == 0.0 and mem.wind[1] == 0.0
         drift = mem.wind * drift_persistence(lim, dwa_cfg.T_p) if cfg.wind_drift and not still else None
@@ -427,7 +430,10 @@ class FusionExpert(OnboardPolicy):
         if not errors.size:
             return errors
         alive = view.neighbour_alive
-        allowed = np.linalg.norm(view.offsets[view.neighbour_ids[alive], :2], axis=1)
+        key = alive.tobytes()                           # the slot ranges change only when a follower is lost
+        if mem.pace_allowed[0] != key:
+            mem.pace_allowed = key, np.linalg.norm(view.offsets[view.neighbour_ids[alive], :2], axis=1)
+        allowed = mem.pace_allowed[1]
         lags = trail_lags(trail, pos, view.neighbour_states[alive, :2], allowed)
         return np.minimum(errors, lags)
 
@@ -572,8 +578,9 @@ class FusionExpert(OnboardPolicy):
         goal = pred_xy + turned_pred[row]
         heading_l = np.array([math.cos(lead[PSI]), math.sin(lead[PSI])])
         lead_moving = not leader_parked(view, cfg)
-        a_j = goal - view.state[:2] + (cfg.k_h * heading_l if lead_moving else 0.0)   # a parked slot is the target
-        lookahead = view.state[:2] + a_j
+        x, y = float(view.state[0]), float(view.state[1])            # floats: the array arithmetic's values, faster
+        k_hx, k_hy = (cfg.k_h * float(heading_l[0]), cfg.k_h * float(heading_l[1])) if lead_moving else (0.0, 0.0)
+        lookahead = np.array([x + ((float(goal[0]) - x) + k_hx), y + ((float(goal[1]) - y) + k_hy)])  # a_j = goal - p
         slot_now = lead[:2] + turned_now[row]
         trail = mem.trail
         if cfg.rejoin == "trail" and (not trail or np.hypot(*(lead[:2] - trail[-1])) >= cfg.trail_spacing):
@@ -697,7 +704,7 @@ def _occupied_within(view, local: _Local, point: np.ndarray, radius: float) -> b
     """``view.occupancy.occupied_within(point, radius)``, answered from the cycle's local voxels when they hold every
     voxel that query could find (leaf level, the ball around ``point`` inside the local sphere with a voxel to
     spare): any leaf centre at squared distance <= radius^2, the map kernel's test in its arithmetic."""
-    if local.level == 0 and math.dist(point, view.state[:3]) + radius + view.occupancy.resolution <= local.reach:
+    if local.level == 0 and math.dist(point.tolist(), view.state[:3].tolist()) + radius + view.occupancy.resolution <= local.reach:
         return not segment_clear(local.obstacles, point, point, radius)    # a point segment: the ball's test
     return view.occupancy.occupied_within(point, radius)
 
@@ -733,14 +740,14 @@ def _gap_altitude(view, target_xy, z_pref: float, cfg: ExpertConfig) -> float | 
     occ = view.occupancy
     res = occ.resolution
     pos = view.state[:3]
-    d = np.asarray(target_xy, dtype=np.float64) - pos[:2]
-    dist = math.hypot(d[0], d[1])
+    dx, dy = float(target_xy[0]) - float(pos[0]), float(target_xy[1]) - float(pos[1])   # floats: no array glue
+    dist = math.hypot(dx, dy)
     if dist < 1e-6:
         return None
     ts = np.arange(res, min(cfg.gap_lookahead, dist + res), res)
     if ts.size == 0:
         return None
-    best = gap_altitude_kernel(tuple(occ.arrays()), occ.origin, res, pos, d / dist, ts, z_pref,
+    best = gap_altitude_kernel(tuple(occ.arrays()), occ.origin, res, pos, np.array([dx / dist, dy / dist]), ts, z_pref,
                                max(1, int(round(cfg.gap_depth / res))), lim.r_uav + lim.r_safe, lim.z_min, lim.z_max,
                                cfg.gap_margin)
     return None if math.isnan(best) else best
@@ -768,9 +775,8 @@ def _column_offsets(offsets: np.ndarray, spacing: float) -> np.ndarray:
 def _follower_errors(view) -> np.ndarray:
     """Horizontal slot errors of the followers, from their broadcasts and the leader's own pose."""
     s = view.state
-    slots = s[:2] + _rotated(s[PSI], view.offsets[view.neighbour_ids])
-    alive = view.neighbour_alive
-    return np.linalg.norm(view.neighbour_states[alive, :2] - slots[alive], axis=1)
+    return slot_errors(float(s[0]), float(s[1]), float(np.cos(s[PSI])), float(np.sin(s[PSI])), view.offsets,
+                       view.neighbour_ids, view.neighbour_states, view.neighbour_alive)
 
 
 def _slot_brake_cap(v_leader: float, distance: float, a_max: float) -> float:
@@ -781,7 +787,7 @@ def _slot_brake_cap(v_leader: float, distance: float, a_max: float) -> float:
 
 def _pursuit_cap(state, point, w_max: float, v_cap: float) -> float:
     """``v_cap`` lowered to the speed at which the turn-rate limit still steers onto ``point`` (pure pursuit)."""
-    d = point - state[:2]
+    d = (float(point[0]) - float(state[0]), float(point[1]) - float(state[1]))   # floats: no array glue
     dist = math.hypot(d[0], d[1])
     theta = abs(bearing_error(state, d)) if dist > 1e-9 else 0.0
     reach = dist / 2.0 if theta >= math.pi / 2 else dist / (2.0 * math.sin(theta)) if theta > 1e-9 else math.inf

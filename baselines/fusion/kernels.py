@@ -293,3 +293,26 @@ def trail_lags(trail, leader_xy, followers_xy, allowed):
             if lag < lags[i]:
                 lags[i] = lag
     return lags
+
+
+@numba.njit(cache=True)
+def slot_errors(x, y, cos_psi, sin_psi, offsets, ids, states, alive):
+    """Horizontal distances of the live rows of ``states`` (K, 7; ``alive``) to their slots, the body-frame
+    ``offsets`` rows ``ids`` turned by a heading with cosine and sine ``cos_psi``, ``sin_psi`` (numpy's, as
+    ``formation.slot_positions`` takes them) about (x, y): the arithmetic, in its order, of ``slot_positions``
+    about the origin plus (x, y), then ``np.linalg.norm`` of the differences."""
+    n = 0
+    for k in range(ids.shape[0]):
+        n += alive[k]
+    out = np.empty(n)
+    m = 0
+    for k in range(ids.shape[0]):
+        if not alive[k]:
+            continue
+        o = ids[k]
+        sx = x + ((0.0 + cos_psi * offsets[o, 0]) - sin_psi * offsets[o, 1])
+        sy = y + ((0.0 + sin_psi * offsets[o, 0]) + cos_psi * offsets[o, 1])
+        dx, dy = states[k, 0] - sx, states[k, 1] - sy
+        out[m] = math.sqrt(dx * dx + dy * dy)
+        m += 1
+    return out
