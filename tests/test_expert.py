@@ -4,6 +4,7 @@ Episodes are the slow part of the suite, so every scenario here is a few metres 
 episode ends within a few hundred steps.
 """
 
+import dataclasses
 import math
 
 import numpy as np
@@ -301,6 +302,20 @@ def test_weight_names_follow_the_config():
     assert w.tolist() == [cfg.dwa.alpha0, cfg.dwa.beta, cfg.dwa.gamma, cfg.dwa.eps0, cfg.vfh.k1, cfg.vfh.k2, cfg.vfh.k3]
     w2 = np.arange(1.0, 8.0)
     assert cfg.with_weights(w2).weights().tolist() == w2.tolist()
+
+
+def test_with_weights_equals_the_fully_checked_copy():
+    # with_weights skips the checks of fields it does not change; the copy equals the one replace() validates
+    cfg = ExpertConfig()
+    w = np.array([0.3, 0.1, 0.0, 0.2, 4.0, 1.0, 3.0])
+    full = dataclasses.replace(cfg, dwa=dataclasses.replace(cfg.dwa, alpha0=w[0], alpha=w[0], beta=w[1], gamma=w[2],
+                                                            eps0=w[3]),
+                               vfh=dataclasses.replace(cfg.vfh, k1=w[4], k2=w[5], k3=w[6]))
+    fast = cfg.with_weights(w)
+    assert fast == full and hash(fast) == hash(full) and fast is not cfg and fast.dwa is not cfg.dwa
+    assert cfg.weights().tolist() != w.tolist()                    # the original is untouched
+    with pytest.raises(ValueError, match=r"DWAConfig.beta=-1.0 is out of range"):
+        cfg.dwa.with_checked(beta=-1.0)                            # the field's declared bound still holds
 
 
 class NoOnboard:

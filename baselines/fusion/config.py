@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
@@ -370,11 +370,17 @@ class ExpertConfig(Config):
         return np.array([d.alpha0, d.beta, d.gamma, d.eps0, v.k1, v.k2, v.k3])
 
     def with_weights(self, w) -> "ExpertConfig":
+        """A copy with the evaluation weights ``w`` (``WEIGHT_NAMES`` order), each checked against its field's
+        declared bound (``Config.with_checked``: no check across fields reads a weight); called every step with
+        residual weights."""
         w = np.asarray(w, dtype=np.float64)
-        if w.shape != (len(WEIGHT_NAMES),) or not np.all(np.isfinite(w)) or np.any(w < 0):
+        try:
+            if w.shape != (len(WEIGHT_NAMES),):
+                raise ValueError
+            dwa = self.dwa.with_checked(alpha0=w[0], alpha=w[0], beta=w[1], gamma=w[2], eps0=w[3])
+            vfh = self.vfh.with_checked(k1=w[4], k2=w[5], k3=w[6])
+        except ValueError:
             raise ValueError(f"weights: expected {len(WEIGHT_NAMES)} finite values >= 0 in the order {WEIGHT_NAMES}, "
-                             f"got {w.tolist() if w.size < 20 else w.shape}")
-        dwa = replace(self.dwa, alpha0=w[0], alpha=w[0], beta=w[1], gamma=w[2], eps0=w[3])
-        vfh = replace(self.vfh, k1=w[4], k2=w[5], k3=w[6])
-        return replace(self, dwa=dwa, vfh=vfh)
+                             f"got {w.tolist() if w.size < 20 else w.shape}") from None
+        return self.with_checked(dwa=dwa, vfh=vfh)
 
