@@ -132,7 +132,8 @@ class FormationEnv(ParallelEnv):
         self.scenario: Scenario | None = None
         self._snapshot: SimpleNamespace | None = None            # see _onboard_snapshot
         n = self.n_uavs                                          # row i: the UAVs other than i (onboard views)
-        self._others = _read_only(np.tile(np.arange(n, dtype=np.int64), (n, 1))[~np.eye(n, dtype=bool)].reshape(n, n - 1))
+        others = np.tile(np.arange(n, dtype=np.int64), (n, 1))[~np.eye(n, dtype=bool)].reshape(n, n - 1)
+        self._others = _read_only(others)
         self._map_store: MapStore | None = None                  # the onboard maps, cleared by every reset
         self._layouts: dict = {}                                 # see _layout
         self.world = None

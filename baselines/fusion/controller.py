@@ -704,7 +704,8 @@ def _occupied_within(view, local: _Local, point: np.ndarray, radius: float) -> b
     """``view.occupancy.occupied_within(point, radius)``, answered from the cycle's local voxels when they hold every
     voxel that query could find (leaf level, the ball around ``point`` inside the local sphere with a voxel to
     spare): any leaf centre at squared distance <= radius^2, the map kernel's test in its arithmetic."""
-    if local.level == 0 and math.dist(point.tolist(), view.state[:3].tolist()) + radius + view.occupancy.resolution <= local.reach:
+    near = math.dist(point.tolist(), view.state[:3].tolist()) + radius + view.occupancy.resolution
+    if local.level == 0 and near <= local.reach:
         return not segment_clear(local.obstacles, point, point, radius)    # a point segment: the ball's test
     return view.occupancy.occupied_within(point, radius)
 
