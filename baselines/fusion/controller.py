@@ -745,12 +745,10 @@ def _gap_altitude(view, target_xy, z_pref: float, cfg: ExpertConfig) -> float | 
     dist = math.hypot(dx, dy)
     if dist < 1e-6:
         return None
-    ts = np.arange(res, min(cfg.gap_lookahead, dist + res), res)
-    if ts.size == 0:
-        return None
-    best = gap_altitude_kernel(tuple(occ.arrays()), occ.origin, res, pos, np.array([dx / dist, dy / dist]), ts, z_pref,
-                               max(1, int(round(cfg.gap_depth / res))), lim.r_uav + lim.r_safe, lim.z_min, lim.z_max,
-                               cfg.gap_margin)
+    span = max(1, int(round(cfg.gap_depth / res)))
+    best = gap_altitude_kernel(tuple(occ.arrays()), occ.origin, res, pos, dx / dist, dy / dist,
+                               float(min(cfg.gap_lookahead, dist + res)), z_pref, span, lim.r_uav + lim.r_safe,
+                               lim.z_min, lim.z_max, cfg.gap_margin)
     return None if math.isnan(best) else best
 
 
@@ -812,9 +810,9 @@ def _park_slots(view, psi: float) -> np.ndarray:
     return formation_slots(at_goal, psi, view.offsets[1:], view.z_ref, view.slot_altitude)
 
 
-def _slots_free(view, psi: float, margin: float) -> bool:
-    """Whether every follower slot of a leader at its position with heading ``psi`` is free in its own map."""
-    for slot in _park_slots(view, psi):
+def _slots_free(view, slots: np.ndarray, margin: float) -> bool:
+    """Whether every follower slot (``_park_slots``) is free in the leader's own map."""
+    for slot in slots:
         if np.any(slot[:2] < view.bounds_lo[:2] + margin) or np.any(slot[:2] > view.bounds_hi[:2] - margin):
             return False
         if view.occupancy.occupied_within(slot, margin):
@@ -822,13 +820,13 @@ def _slots_free(view, psi: float, margin: float) -> bool:
     return True
 
 
-def _slots_unmarked(view, psi: float, marks: np.ndarray, radius: float) -> bool:
-    """Whether no follower slot of heading ``psi`` lies within ``radius`` (horizontally) of a marked point (``marks``,
+def _slots_unmarked(slots: np.ndarray, marks: np.ndarray, radius: float) -> bool:
+    """Whether no follower slot (``_park_slots``) lies within ``radius`` (horizontally) of a marked point (``marks``,
     (K, 2): slots a follower did not reach, ``repark_time``)."""
     if len(marks) == 0:
         return True
-    slots = _park_slots(view, psi)[:, :2]
-    return bool(np.all(((slots[:, None, :] - marks[None, :, :]) ** 2).sum(axis=2) >= radius * radius))
+    xy = slots[:, :2]
+    return bool(np.all(((xy[:, None, :] - marks[None, :, :]) ** 2).sum(axis=2) >= radius * radius))
 
 
 def _mark_unreached_slots(view, mem: _UAVMemory, cfg: ExpertConfig, t: float) -> None:
@@ -858,14 +856,16 @@ def _park_heading(view, mem: _UAVMemory, cfg: ExpertConfig, n: int = 72) -> floa
     lim = view.limits
     margin = lim.r_uav + lim.r_safe + view.occupancy.resolution
     marks, radius = mem.park_marks, cfg.repark_radius
-    if (mem.park_psi is not None and _slots_free(view, mem.park_psi, margin)
-            and _slots_unmarked(view, mem.park_psi, marks, radius)):
-        return mem.park_psi
+    if mem.park_psi is not None:
+        slots = _park_slots(view, mem.park_psi)
+        if _slots_free(view, slots, margin) and _slots_unmarked(slots, marks, radius):
+            return mem.park_psi
     psi = float(view.state[PSI])
     turns = [psi] + [wrap(psi + sign * k * 2.0 * math.pi / n) for k in range(1, n // 2 + 1) for sign in (1.0, -1.0)]
-    free = [cand for cand in turns if _slots_free(view, cand, margin)]
-    unmarked = [cand for cand in free if _slots_unmarked(view, cand, marks, radius)]
-    free = unmarked or free
+    candidates = [(cand, _park_slots(view, cand)) for cand in turns]     # each heading's slots, built once
+    free = [(cand, slots) for cand, slots in candidates if _slots_free(view, slots, margin)]
+    unmarked = [cand for cand, slots in free if _slots_unmarked(slots, marks, radius)]
+    free = unmarked or [cand for cand, _ in free]
     if cfg.park_heading == "nearest":
         mem.park_psi = free[0] if free else psi
     else:

@@ -119,18 +119,20 @@ def segment_clear(centres, a, b, clearance):
 
 
 @numba.njit(cache=True)
-def gap_altitude_kernel(parts, origin, res, pos, u, ts, z_pref, span, h_b, z_min, z_max, margin):
+def gap_altitude_kernel(parts, origin, res, pos, ux, uy, t_stop, z_pref, span, h_b, z_min, z_max, margin):
     """The known-gap altitude on the leaves (``parts``: the fields of a ``MapArrays`` as a plain tuple, which numba
-    types from Python far faster than a new named tuple every call): the columns at ``pos + ts * u``, the first
-    blocking the band around ``z_pref``, and the runs known free through it and the next ``span - 1`` columns;
-    NaN if none."""
+    types from Python far faster than a new named tuple every call): the columns at ``pos + t * (ux, uy)`` for t in
+    ``np.arange(res, t_stop, res)`` (its values: res + i res), the first blocking the band around ``z_pref``, and
+    the runs known free through it and the next ``span - 1`` columns; NaN if none."""
     leaves = MapArrays(*parts)
     nx, ny, nz = leaves.shape[0], leaves.shape[1], leaves.shape[2]
-    cols = np.empty((ts.size, 2), np.int64)
+    n_t = max(0, math.ceil((t_stop - res) / res))
+    cols = np.empty((n_t, 2), np.int64)
     k_cols = 0
-    for i in range(ts.size):
-        ci = int(math.floor((pos[0] + ts[i] * u[0] - origin[0]) / res))
-        cj = int(math.floor((pos[1] + ts[i] * u[1] - origin[1]) / res))
+    for i in range(n_t):
+        t = res + i * res
+        ci = int(math.floor((pos[0] + t * ux - origin[0]) / res))
+        cj = int(math.floor((pos[1] + t * uy - origin[1]) / res))
         if 0 <= ci < nx and 0 <= cj < ny:
             cols[k_cols, 0], cols[k_cols, 1] = ci, cj
             k_cols += 1
