@@ -384,7 +384,7 @@ class FusionExpert(OnboardPolicy):
             target = np.array([goal[0], goal[1], view.slot[2]])
         else:
             return False
-        return bool(math.hypot(target[0] - pos[0], target[1] - pos[1]) < within
+        return bool(math.hypot(float(target[0]) - float(pos[0]), float(target[1]) - float(pos[1])) < within
                     and segment_clear(obstacles, pos, target, view.limits.r_uav + view.limits.r_safe + radius))
 
     def _no_progress(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float) -> bool:

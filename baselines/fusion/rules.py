@@ -297,8 +297,9 @@ def wind_margin(mem, cfg, clearance_now: float, r_safe: float) -> float:
 
 def fence_clearance(pos, bounds_lo, bounds_hi, r_uav: float) -> float:
     """The UAV's horizontal clearance (m) to the world's x/y bounds: the nearest bound's distance minus r_uav."""
-    nearest = min(pos[0] - bounds_lo[0], pos[1] - bounds_lo[1], bounds_hi[0] - pos[0], bounds_hi[1] - pos[1])
-    return float(nearest) - r_uav
+    x, y = float(pos[0]), float(pos[1])                  # floats: the numpy scalars' values, without their glue
+    nearest = min(x - float(bounds_lo[0]), y - float(bounds_lo[1]), float(bounds_hi[0]) - x, float(bounds_hi[1]) - y)
+    return nearest - r_uav
 
 
 # ---------------------------------------------------------------------- helpers (the controller uses them too)
