@@ -105,3 +105,17 @@ def test_gap_hold_keeps_the_gap_altitude_where_the_slot_altitude_is_too_near_the
     assert off.gap and off.vz == pytest.approx(ExpertConfig().k_z * (3.65 - 4.0))   # before: back down to the slot's
     clear, _ = _vertical(True, 4.3, 4.3, occ)                      # slot altitude passable: no gap rule, the slot's
     assert not clear.gap and clear.vz == pytest.approx(0.0)
+
+
+def test_gap_altitude_looks_along_the_target_line_out_to_the_lookahead_only():
+    from baselines.fusion.controller import _gap_altitude
+    occ = _wall_with_gap(3.3, 5.4)                                  # the wall at x = 2.0..2.4, the UAV at x = 0
+    view = SimpleNamespace(state=np.array([0.0, 0.0, 4.0, 0.0, 0.3, 0.0, 0.0]), limits=LIM, occupancy=occ)
+    cfg = ExpertConfig()
+    gap_z = 3.2 + LIM.r_uav + LIM.r_safe + cfg.gap_margin           # as in the gap_hold test above
+    assert _gap_altitude(view, np.array([4.0, 0.0]), 3.65, cfg) == pytest.approx(gap_z)
+    assert _gap_altitude(view, np.array([4.0, 0.0]), 4.3, cfg) is None          # the slot altitude passes: no gap
+    assert _gap_altitude(view, np.array([1.5, 0.0]), 3.65, cfg) is None          # the target short of the wall
+    assert _gap_altitude(view, np.array([0.0, 0.0]), 3.65, cfg) is None          # on the target
+    assert _gap_altitude(view, np.array([4.0, 0.0]), 3.65, ExpertConfig(gap_lookahead=1.5)) is None   # too short
+    assert _gap_altitude(view, np.array([4.0, 0.0]), 3.65, ExpertConfig(gap_lookahead=0)) is None     # ablation
