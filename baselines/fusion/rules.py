@@ -261,15 +261,17 @@ def wind_estimate(view, mem, cfg) -> None:
     second is the drift (the wind its autopilot has not compensated), low-pass filtered with time constant
     ``wind_tau`` into ``mem.wind``, and its squared speed with ``gust_tau`` into ``mem.drift_ms`` (both zero in
     still air)."""
-    s, dt = view.state, view.limits.dt
+    dt = view.limits.dt
+    s = view.state.tolist()                     # floats: the numpy scalars' values, without their glue
+    x_now, y_now, psi_now, v, w = s[0], s[1], s[PSI], s[V], s[W]
     prev = mem.prev_pose
     if prev is not None:
-        x, y, _, _ = integrate(prev[0], prev[1], 0.0, prev[2], s[V], s[W], 0.0, dt)
-        drift_x, drift_y = (s[0] - x) / dt, (s[1] - y) / dt
+        x, y, _, _ = integrate(prev[0], prev[1], 0.0, prev[2], v, w, 0.0, dt)
+        drift_x, drift_y = (x_now - x) / dt, (y_now - y) / dt
         gain, wind_x, wind_y = min(1.0, dt / cfg.wind_tau), float(mem.wind[0]), float(mem.wind[1])
         mem.wind = np.array([wind_x + gain * (drift_x - wind_x), wind_y + gain * (drift_y - wind_y)])
         mem.drift_ms += min(1.0, dt / cfg.gust_tau) * (drift_x * drift_x + drift_y * drift_y - mem.drift_ms)
-    mem.prev_pose = (float(s[0]), float(s[1]), float(s[PSI]))
+    mem.prev_pose = (x_now, y_now, psi_now)
 
 
 def gust_speed(mem) -> float:
