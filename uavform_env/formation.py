@@ -54,10 +54,16 @@ def slot_positions(leader_xy: np.ndarray, leader_yaw: float, offsets: np.ndarray
 
 
 @numba.njit(cache=True)
+def slot_xy(x, y, c, s, dx, dy):
+    """The slot rotation, written once: (x, y) + R_z(psi) [dx, dy] for a heading of cosine ``c`` and sine ``s``
+    (numba kernels that need one slot call it in their loops)."""
+    return x + c * dx - s * dy, y + s * dx + c * dy
+
+
+@numba.njit(cache=True)
 def _slot_rows(x, y, z, c, s, offsets, out):
     for i in range(offsets.shape[0]):
-        out[i, 0] = x + c * offsets[i, 0] - s * offsets[i, 1]
-        out[i, 1] = y + s * offsets[i, 0] + c * offsets[i, 1]
+        out[i, 0], out[i, 1] = slot_xy(x, y, c, s, offsets[i, 0], offsets[i, 1])
         out[i, 2] = z + offsets[i, 2]
 
 

@@ -8,6 +8,7 @@ import numba
 import numpy as np
 
 from uavform_env.dynamics import V, VZ, wrap
+from uavform_env.formation import slot_xy
 from uavform_env.occupancy import MapArrays, voxel_logodds
 
 
@@ -301,8 +302,8 @@ def trail_lags(trail, leader_xy, followers_xy, allowed):
 def slot_errors(x, y, cos_psi, sin_psi, offsets, ids, states, alive):
     """Horizontal distances of the live rows of ``states`` (K, 7; ``alive``) to their slots, the body-frame
     ``offsets`` rows ``ids`` turned by a heading with cosine and sine ``cos_psi``, ``sin_psi`` (numpy's, as
-    ``formation.slot_positions`` takes them) about (x, y): the arithmetic, in its order, of ``slot_positions``
-    about the origin plus (x, y), then ``np.linalg.norm`` of the differences."""
+    ``formation.slot_positions`` takes them) about (x, y): ``formation.slot_xy`` about the origin plus (x, y), as
+    ``slot_positions`` about the origin is, then ``np.linalg.norm`` of the differences."""
     n = 0
     for k in range(ids.shape[0]):
         n += alive[k]
@@ -312,9 +313,8 @@ def slot_errors(x, y, cos_psi, sin_psi, offsets, ids, states, alive):
         if not alive[k]:
             continue
         o = ids[k]
-        sx = x + ((0.0 + cos_psi * offsets[o, 0]) - sin_psi * offsets[o, 1])
-        sy = y + ((0.0 + sin_psi * offsets[o, 0]) + cos_psi * offsets[o, 1])
-        dx, dy = states[k, 0] - sx, states[k, 1] - sy
+        sx, sy = slot_xy(0.0, 0.0, cos_psi, sin_psi, offsets[o, 0], offsets[o, 1])
+        dx, dy = states[k, 0] - (x + sx), states[k, 1] - (y + sy)
         out[m] = math.sqrt(dx * dx + dy * dy)
         m += 1
     return out
