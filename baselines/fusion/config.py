@@ -157,8 +157,10 @@ class ExpertConfig(Config):
                        (a gusty leader in ``classic-2d`` kept its margin from the discs and was carried out of the
                        world beside them) [X]
     wind_drift         DWA's rollouts drift with the estimated wind (``dwa_plan(drift=...)``) times the share of it
-                       the autopilot leaves over the horizon (``rules.drift_persistence``): a sample that holds
-                       still while the wind carries the UAV into an obstacle is inadmissible [X]
+                       the autopilot leaves over the horizon (``rules.drift_persistence``). Off by default since
+                       session 12: the drift left by the leaning autopilot is the gusts' high-pass part, and this
+                       forecast of it points the wrong way (slope -0.99 against the drift realised over T_p;
+                       docs/deviations.md); rollouts without drift crash less [X]
     path_margin, margin_detour  the leader's A* route is the path on its raster
                        inflated by r_uav + r_safe plus ``path_margin`` when that path is at most ``margin_detour`` m
                        longer than the one inflated by r_uav + r_safe alone (d1): a path one cell off a wall held
@@ -284,7 +286,7 @@ class ExpertConfig(Config):
     gust_tau: float = 5.0
     hold_drift_time: float = 4.5
     hold_search: float = 4.0
-    wind_drift: bool = True
+    wind_drift: bool = False
     explore_unknown: bool = True
     route_turn_cost: bool = True
     path_margin: float = 0.5
