@@ -72,6 +72,33 @@ def test_batched_integrate_equals_the_dense_reference_also_when_the_pool_grows(m
         np.testing.assert_array_equal(m.logodds, ref.grid)
 
 
+def test_repeated_scans_of_one_region_equal_the_dense_reference_and_keep_the_block_summaries():
+    """Voxels hit and missed again and again (occupied ones freed, free ones clamped at l_min and settled, settled
+    ones hit again) end as the reference's, scan after scan, and every block's occupied count and row bits match
+    its log-odds: the oracle for any faster walk of the misses."""
+    rng = np.random.default_rng(11)
+    origin, shape = (0.0, 0.0, 0.0), (20, 20, 12)
+    store = MapStore(origin, shape, RES, CFG, 2)
+    refs = [DenseReference(origin, shape) for _ in range(2)]
+    lo, hi = np.array([1.5, 1.5, 1.0]), np.array([2.5, 2.5, 1.4])      # a small box: the rays overlap a lot
+    flips = 0
+    for _ in range(25):
+        scans = [random_scan(rng, lo, hi, n_rays=80, reach=1.8) for _ in range(2)]
+        before = [m.logodds >= store.l_occ for m in store.maps]
+        store.integrate(np.arange(2), [s[0] for s in scans], [s[1] for s in scans], np.array([s[2] for s in scans]))
+        for m, ref, (o, ends, hit), was in zip(store.maps, refs, scans, before):
+            ref.integrate(o, ends, hit)
+            np.testing.assert_array_equal(m.logodds, ref.grid)
+            flips += int(np.count_nonzero(was & ~(m.logodds >= store.l_occ)))
+        leaves = store.levels[0]
+        occupied = leaves.values[:leaves.used[0]] >= store.l_occ
+        np.testing.assert_array_equal(leaves.counts[:leaves.used[0]], occupied.sum(axis=1))
+        rows = occupied.reshape(-1, occupied.shape[1] >> 3, 8)
+        row_bits = np.packbits(rows, axis=2, bitorder="little")[..., 0]
+        np.testing.assert_array_equal(leaves.bits[:leaves.used[0]], row_bits)
+    assert flips > 0 and (store.levels[0].stamps == occupancy._SETTLED).any()   # both cases were exercised
+
+
 def test_batched_histograms_equal_the_per_map_path():
     rng = np.random.default_rng(8)
     store = MapStore((0.0, 0.0, 0.0), (40, 40, 20), RES, CFG, 4)

@@ -563,22 +563,17 @@ def _offset(i, j, k):
 
 
 @numba.njit(cache=True, inline="always")
-def _update_voxel(values, bits, counts, f, update, l_min, l_max, l_occ):
-    """Add one log-odds update to pooled voxel f (flat: block * 512 + offset) in float32, clamp, keep the
-    block's summaries (``values``, ``bits`` flat views of the pool)."""
-    old = values[f]
-    was_occupied = old >= l_occ
-    if np.isnan(old):
-        old = np.float32(0.0)
-    new = old + update
-    if new < l_min:
-        new = l_min
-    elif new > l_max:
-        new = l_max
-    values[f] = new
-    is_occupied = new >= l_occ
-    if is_occupied != was_occupied:
-        counts[f >> (3 * BLOCK_SHIFT)] += 1 if is_occupied else -1
+def _added(old, update, l_min, l_max):
+    """A voxel's log-odds ``old`` (NaN = unknown, counted as 0) plus one update, in float32, clamped."""
+    return min(max((np.float32(0.0) if np.isnan(old) else old) + update, l_min), l_max)
+
+
+@numba.njit(cache=True, inline="always")
+def _flip(bits, counts, f, old, new, l_occ):
+    """Keep the block summaries of pooled voxel f (flat: block * 512 + offset; ``bits`` a flat view of the pool)
+    when its log-odds goes from ``old`` to ``new``: its row bit and the block's occupied count."""
+    if (new >= l_occ) != (old >= l_occ):
+        counts[f >> (3 * BLOCK_SHIFT)] += 1 if new >= l_occ else -1
         bits[f >> BLOCK_SHIFT] ^= np.uint8(1 << (f & _MASK))
 
 
@@ -629,10 +624,13 @@ def _integrate_one(tables, values, bits, counts, owner, used, stamps, stamp, dir
     the update sets. The hit voxels go first (a hit beats a miss), then each ray walks its
     ``computeRayKeys`` voxels (``ray_setup``, ``ray_select``, ``ray_step``) and applies misses. A miss on a voxel
     clamped at l_min changes nothing, so such voxels (free space missed in several earlier scans) carry
-    the stamp _SETTLED, set by the miss that clamped them and replaced by the next hit, and the walk passes
-    them over on that one byte. The walk keeps the last block looked
-    up and resolves a block only when it enters one (the lookup is written out here: an inlined helper
-    that may call ``_new_block`` costs refcounting on every voxel).
+    the stamp _SETTLED, set by the miss that clamped them and replaced by the next hit, and the walk leaves
+    them as they are on that one byte. The walk does not branch on the stamp (most voxels it visits are
+    settled or done in this scan, a condition hard to foresee): it works the miss out for every voxel and
+    stores it, or writes the voxel back unchanged (3-9 % faster in the env than the branch). The walk keeps
+    the last block looked up and resolves a block only when it enters one (the lookup is written out here:
+    an inlined helper that may call ``_new_block`` costs refcounting on every voxel; so does one that takes
+    arrays and returns a value, 3-4x slower measured).
     """
     nx, ny, nz = shape[0], shape[1], shape[2]
     top, chunks = tables
@@ -662,7 +660,9 @@ def _integrate_one(tables, values, bits, counts, owner, used, stamps, stamp, dir
             changed = True
             if flat_stamps[f] != stamp:
                 flat_stamps[f] = stamp
-                _update_voxel(flat_values, flat_bits, counts, f, l_hit, l_min, l_max, l_occ)
+                old = flat_values[f]
+                flat_values[f] = _added(old, l_hit, l_min, l_max)
+                _flip(flat_bits, counts, f, old, flat_values[f], l_occ)
     cbi, cbj, cbk, base = np.int64(-1), np.int64(-1), np.int64(-1), np.int64(0)  # the last block looked up
     for r in range(n_rays):  # the misses
         ex, ey, ez = ends[r, 0], ends[r, 1], ends[r, 2]
@@ -688,10 +688,15 @@ def _integrate_one(tables, values, bits, counts, owner, used, stamps, stamp, dir
                     cbi, cbj, cbk, base = bi, bj, bk, b << (3 * BLOCK_SHIFT)
                 f = np.uint64(base | _offset(i, j, k))  # unsigned: no negative-index wrap in the loads
                 changed = True
-                old = flat_stamps[f]
-                if old != stamp and old != _SETTLED:
-                    _update_voxel(flat_values, flat_bits, counts, f, l_miss, l_min, l_max, l_occ)
-                    flat_stamps[f] = _SETTLED if flat_values[f] == l_min else stamp
+                # branch-free (see the docstring): the miss is worked out always, then stored or the voxel rewritten
+                mark = flat_stamps[f]
+                apply = (mark != stamp) & (mark != _SETTLED)
+                old = flat_values[f]
+                new = _added(old, l_miss, l_min, l_max)
+                flat_values[f] = new if apply else old
+                flat_stamps[f] = (_SETTLED if new == l_min else stamp) if apply else mark
+                if apply:
+                    _flip(flat_bits, counts, f, old, new, l_occ)
             i, j, k, tx, ty, tz = ray_step(i, j, k, sx, sy, sz, tx, ty, tz, ddx, ddy, ddz, on_x, on_y, on_z)
             on_x, on_y, on_z, t = ray_select(tx, ty, tz)  # t = min(tx, ty, tz)
             if ((i == ei) & (j == ej) & (k == ek)) | (t > length):
