@@ -284,6 +284,8 @@ class ExpertConfig(Config):
     k_hold: float = 0.5
     wind_tau: float = 1.0
     gust_tau: float = 5.0
+    wind_mean_tau: float = 10.0
+    gust_memory: float = 2.0
     hold_drift_time: float = 4.5
     hold_search: float = 4.0
     wind_drift: bool = False
@@ -344,7 +346,7 @@ class ExpertConfig(Config):
                                             "guard_hover_speed", "path_margin",
                                             "margin_detour", "repark_time", "repark_radius",
                                             "gust_allowance", "route_keep_margin")},
-        **{name: in_range(0.0, lo_open=True) for name in ("wind_tau", "gust_tau")},
+        **{name: in_range(0.0, lo_open=True) for name in ("wind_tau", "gust_tau", "wind_mean_tau", "gust_memory")},
         "leader_speed_cap": in_range(0.0, 1.0, lo_open=True),
         "yield_factor": in_range(0.0, 1.0),
         "wind_margin_share": in_range(0.0, 1.0),
