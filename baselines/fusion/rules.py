@@ -226,7 +226,7 @@ def station_keep(view, mem, cfg, hold_xy, heading: float) -> Command:
     slots. The returned ``vz`` is 0 (the caller holds altitude)."""
     s, lim = view.state, view.limits
     to_hold = np.asarray(hold_xy, dtype=np.float64) - s[:2]
-    u = cfg.k_hold * to_hold - drift_forecast(mem, lim, cfg, 1.0 / cfg.k_hold if cfg.k_hold > 0.0 else math.inf)
+    u = cfg.k_hold * to_hold - drift_forecast(mem, lim, cfg, hold_horizon(cfg))
     speed, dist = math.hypot(u[0], u[1]), math.hypot(to_hold[0], to_hold[1])
     mem.held = dist <= cfg.hold_release if mem.held else dist <= cfg.hold_radius and speed <= cfg.vane_wind
     if mem.held:
@@ -249,8 +249,7 @@ def home_in(view, mem, cfg, point_xy) -> Command:
     w = clamp(err, -lim.w_max, lim.w_max)
     if abs(err) > cfg.dock_turn_angle:
         return Command(0.0, w, 0.0, turning=True)
-    headwind = max(0.0, -float(drift_forecast(mem, lim, cfg, 1.0 / cfg.k_hold if cfg.k_hold > 0.0 else math.inf)
-                                @ to_point) / dist)
+    headwind = max(0.0, -float(drift_forecast(mem, lim, cfg, hold_horizon(cfg)) @ to_point) / dist)
     v = (cfg.k_hold * dist + headwind) * math.cos(err)
     sin_err = abs(math.sin(err))
     if sin_err > 1e-9:
@@ -350,6 +349,11 @@ def fence_clearance(pos, bounds_lo, bounds_hi, r_uav: float) -> float:
 
 
 # ---------------------------------------------------------------------- helpers (the controller uses them too)
+def hold_horizon(cfg) -> float:
+    """The horizon (s) of a hold's drift forecast: 1 / k_hold, the time its return law takes (inf at k_hold 0)."""
+    return 1.0 / cfg.k_hold if cfg.k_hold > 0.0 else math.inf
+
+
 def clamp(x: float, lo: float, hi: float) -> float:
     """``x`` limited to [lo, hi] (np.clip's result for one number, without its array overhead)."""
     return float(min(max(x, lo), hi))
