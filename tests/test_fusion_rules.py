@@ -134,9 +134,8 @@ def test_drift_guard_flies_away_from_a_near_obstacle_only_without_an_admissible_
     drift_guard(cmd, cycle(view(), admissible=False, **near))      # away is behind: turn, no speed
     assert (cmd.v, cmd.w) == (0.0, W_MAX)
     behind = Command(0.0, 0.0, 0.0)
-    steady = np.array([-0.2, 0.0])                                 # 0.2 m/s blowing toward the obstacle, unopposed
-    mem = _UAVMemory(drift=steady, mean_wind=steady)
-    drift_guard(behind, cycle(view(limits=UNOPPOSED), mem, admissible=False, obstacles=[[-0.5, 0.0, 3.0]], radius=0.1))
+    mem = _UAVMemory(wind=np.array([-0.2, 0.0]))                   # 0.2 m/s blowing toward the obstacle
+    drift_guard(behind, cycle(view(), mem, admissible=False, obstacles=[[-0.5, 0.0, 3.0]], radius=0.1))
     assert behind.v == pytest.approx(CFG.guard_speed + 0.2) and behind.w == 0.0
     far = Command(0.0, 0.0, 0.0)
     drift_guard(far, cycle(view(), admissible=False, obstacles=[[-2.0, 0.0, 3.0]], radius=0.1))

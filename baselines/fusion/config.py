@@ -150,7 +150,7 @@ class ExpertConfig(Config):
     gust_tau           time constant (s) of the mean square of the UAV's drift (``rules.gust_speed``, its root: the
                        drift speed gusts cause, which the wind margins scale with) [X]
     gust_memory, wind_mean_tau  the drift forecast (``rules.drift_forecast``) that station keeping, ``home_in``'s
-                       headwind, ``rules.drift_guard``'s speed and (with ``wind_drift``) DWA's rollouts read: the
+                       headwind and (with ``wind_drift``) DWA's rollouts read: the
                        UAV follows its autopilot's lean from its own drift (``rules.wind_estimate``), takes the
                        low-pass of lean + drift over ``wind_mean_tau`` s as the steady wind, and expects a gust (air
                        minus steady wind) to fade with correlation time ``gust_memory`` s while the lean still follows

@@ -130,8 +130,8 @@ def drift_guard(cmd: Command, c: Cycle) -> None:
     """[X] ``guard_clearance``, ``guard_speed``: with no admissible DWA sample, a UAV whose clearance to the nearest
     obstacle point (own-map voxel or world bound) beside it is below ``guard_clearance`` does not brake to a
     hover, which the wind pushes on into the obstacle, but turns its nose away from that point and flies
-    off at ``guard_speed`` plus the drift toward the point it forecasts over ``guard_gust_time`` s
-    (``drift_forecast``), times the cosine of its
+    off at ``guard_speed`` plus the estimated wind toward the point (``mem.wind``: the push it feels, not
+    ``drift_forecast``'s mean drift over a horizon, which left it too slow: session 13), times the cosine of its
     bearing error (0 beyond 90 degrees). A point more above or
     below than beside is the emergency escape's case (g5).
     [X] ``guard_gust_time``, ``guard_hover_speed``: in gusts the guard's clearance grows by ``guard_gust_time`` x the
@@ -155,8 +155,7 @@ def drift_guard(cmd: Command, c: Cycle) -> None:
     if math.hypot(away[0], away[1]) <= abs(s[2] - c.obstacles[m, 2]):
         return
     err = bearing_error(s, away)
-    forecast = drift_forecast(c.mem, lim, cfg, cfg.guard_gust_time)       # the drift over the guard's gust time
-    toward = -float(forecast @ away) / math.hypot(away[0], away[1])         # its component toward the point
+    toward = -float(c.mem.wind @ away) / math.hypot(away[0], away[1])      # wind component toward the point
     speed = min(lim.v_max, cfg.guard_speed + max(0.0, toward))
     cmd.v, cmd.w = speed * max(0.0, math.cos(err)), turn_toward(s, away, lim.w_max)
 
