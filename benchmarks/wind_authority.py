@@ -8,8 +8,7 @@ One UAV in an empty field (``disturbance_drift.field``), per preset, airframe an
   the share whose drift (the wind the autopilot has not compensated, ``env.drift`` = air - lean) is faster than
   v_max and than v_max / 2;
 - the largest distance from its start of the UAV flying ``rules.station_keep`` about the start through the env's
-  own dynamics (unicycle: v in [0, v_max], a_max, w_max), once with the exact drift of the last step, the
-  autopilot's lean and the steady wind (``rules.drift_forecast``'s inputs: "oracle")
+  own dynamics (unicycle: v in [0, v_max], a_max, w_max), once with the exact drift of the last step ("oracle")
   and once with its own estimate (``rules.wind_estimate``, as the expert flies);
 - the same for an ideal holder that turns instantly and moves in any direction at up to v_max, knowing the drift
   (u = -(drift + k_hold p), capped at v_max), integrated on the recorded drift: what the speed limit alone allows;
@@ -47,15 +46,13 @@ def hold(preset: str, seed: int, seconds: float, mode: str, uav: UAVLimits) -> t
     env = penv.unwrapped
     lim = env.config.uav
     start = env.states[0, :2].copy()
-    mem = SimpleNamespace(wind=np.zeros(2), drift=np.zeros(2), lean=np.zeros(2), mean_wind=np.zeros(2),
-                          drift_ms=0.0, prev_pose=None, held=False)
+    mem = SimpleNamespace(wind=np.zeros(2), drift_ms=0.0, prev_pose=None, held=False)
     dist, gust = [], []
     while penv.agents:
         view = SimpleNamespace(state=env.states[0].copy(), limits=lim)
         wind_estimate(view, mem, cfg)
-        if mode == "oracle":                        # the drift of the last step, the lean and steady wind, exactly
-            mem.drift, mem.lean = env.drift[0, :2].copy(), env.lean[0, :2].copy()
-            mem.mean_wind = np.array(env.config.disturbance.wind_mean)
+        if mode == "oracle":
+            mem.wind = env.drift[0, :2].copy()      # the drift of the last step, exactly
         cmd = station_keep(view, mem, cfg, start, 0.0) if mode != "hover" else SimpleNamespace(v=0.0, w=0.0)
         penv.step({"uav_0": commands_to_actions(np.array([cmd.v, cmd.w, 0.0]), lim)})
         dist.append(float(np.hypot(*(env.states[0, :2] - start))))

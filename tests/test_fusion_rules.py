@@ -11,7 +11,7 @@ from baselines.dwa import dwa_plan
 from baselines.fusion import ExpertConfig, FusionExpert
 from baselines.fusion.controller import _UAVMemory
 from baselines.fusion.rules import (RULES, Command, Cycle, braking_fallback, dock_approach, dock_turn, drift_guard,
-                                    drift_forecast, emergency_escape, fence_clearance, gust_speed, gust_standoff,
+                                    drift_persistence, emergency_escape, fence_clearance, gust_speed, gust_standoff,
                                     reverse_turn, station_keep, vertical_separation, wind_estimate, wind_margin)
 from baselines.vfh3d import VFHPlanner
 from uavform_env import EnvConfig, parallel_env
@@ -123,9 +123,6 @@ def test_emergency_escape_moves_away_vertically_unless_into_a_neighbour():
     assert (below.v, below.vz) == (0.0, 0.0)                               # a neighbour below: hold altitude
 
 
-UNOPPOSED = LIM.replace(wind_authority=0.0)     # the airframe the wind carries whole (its drift is the air)
-
-
 def test_drift_guard_flies_away_from_a_near_obstacle_only_without_an_admissible_sample():
     near = dict(obstacles=[[0.5, 0.0, 3.0]], radius=0.1)           # 0.1 m clearance, straight ahead
     cmd = Command(0.0, 0.0, 0.0)
@@ -163,6 +160,9 @@ def test_vertical_separation_moves_the_higher_uav_up_and_the_lower_down():
     assert floor.vz == LIM.vz_max                                  # at the band's floor: up
 
 
+UNOPPOSED = LIM.replace(wind_authority=0.0)     # the airframe the wind carries whole (drift_persistence = 1)
+
+
 def test_station_keep_flies_back_and_against_the_wind_and_rests_in_still_air():
     mem = _UAVMemory()
     held = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([0.1, 0.0]), 0.5)   # at the point, still air
@@ -170,22 +170,21 @@ def test_station_keep_flies_back_and_against_the_wind_and_rests_in_still_air():
     mem.held = False
     behind = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([-1.0, 0.0]), 0.0)   # 1 m past: turn, no speed
     assert (behind.v, behind.w) == (0.0, W_MAX)
-    mem.drift = mem.mean_wind = np.array([-0.3, 0.0])                     # a steady 0.3 m/s headwind
+    mem.wind = np.array([-0.3, 0.0])                                      # a 0.3 m/s headwind
     ahead = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([1.0, 0.0]), 0.0)
     assert ahead.v == pytest.approx(CFG.k_hold * 1.0 + 0.3) and ahead.w == 0.0
     on_point = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([0.0, 0.0]), 0.0)   # on the point: fly
     assert on_point.v == pytest.approx(0.3) and on_point.w == 0.0                           # against the wind
-    mem.drift = mem.mean_wind = np.array([0.0, 0.3])                      # crosswind from the right: nose into it
+    mem.wind = np.array([0.0, 0.3])                                       # crosswind from the right: nose into it
     cross = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([0.0, 0.0]), 0.0)
     assert cross.v == pytest.approx(0.0, abs=1e-12) and cross.w == -W_MAX
 
 
 def test_station_keep_counters_only_the_drift_the_autopilot_leaves_and_holds_until_released():
-    mem = _UAVMemory(drift=np.array([-0.3, 0.0]))                         # a 0.3 m/s head drift, default airframe
+    mem = _UAVMemory(wind=np.array([-0.3, 0.0]))                          # a 0.3 m/s head drift, default airframe
     ahead = station_keep(view(), mem, CFG, np.array([1.0, 0.0]), 0.0)
-    # over 1 / k_hold = 2 s: P(0.5) = 0.25 (1 - e^-4), P(2) = 1 - e^-1, share = P(0.5) - 1/3 (P(2) - P(0.5))
-    share = 0.25 * (1.0 - math.exp(-4.0)) - (1.0 - math.exp(-1.0) - 0.25 * (1.0 - math.exp(-4.0))) / 3.0
-    assert share == pytest.approx(0.116521, abs=1e-6)
+    share = drift_persistence(LIM, 1.0 / CFG.k_hold)                       # 0.5 / 2 (1 - e^-4) = 0.2454
+    assert share == pytest.approx(0.25 * (1.0 - math.exp(-4.0)))
     assert ahead.v == pytest.approx(CFG.k_hold * 1.0 + 0.3 * share) and not mem.held
     rest = _UAVMemory()
     assert station_keep(view(), rest, CFG, np.array([0.1, 0.0]), 0.0).v == 0.0 and rest.held
@@ -198,53 +197,13 @@ def test_station_keep_counters_only_the_drift_the_autopilot_leaves_and_holds_unt
     assert station_keep(view(), fresh, CFG, np.array([0.3, 0.0]), 0.0).v > 0.0 and not fresh.held
 
 
-def test_drift_forecast_known_answers():
-    still = _UAVMemory()
-    assert drift_forecast(still, LIM, CFG, 3.0).tolist() == [0.0, 0.0]               # still air: no drift
-    pushed = _UAVMemory(drift=np.array([1.0, 0.0]))          # a fresh 1 m/s gust: no lean yet, no steady wind
-    assert drift_forecast(pushed, LIM, CFG, math.inf).tolist() == [0.0, 0.0]
-    assert drift_forecast(pushed, LIM.replace(wind_rejection_tau=0.0), CFG, 3.0).tolist() == [0.0, 0.0]
-    # tau = 0.5, T = 2, 3 s: P(0.5) = 1/6 (1 - e^-6), P(2) = 2/3 (1 - e^-1.5); d P(0.5) - d 1/3 (P(2) - P(0.5))
-    p_tau, p_gust = (1.0 - math.exp(-6.0)) / 6.0, 2.0 / 3.0 * (1.0 - math.exp(-1.5))
-    assert drift_forecast(pushed, LIM, CFG, 3.0) == pytest.approx([p_tau - (p_gust - p_tau) / 3.0, 0.0])
-    assert drift_forecast(pushed, LIM, CFG, 3.0)[0] == pytest.approx(0.049034, abs=1e-6)
-    leaned = _UAVMemory(lean=np.array([0.0, 1.0]), mean_wind=np.array([0.0, 1.0]))   # a steady wind, leaned into
-    assert drift_forecast(leaned, LIM, CFG, 3.0) == pytest.approx([0.0, 0.0], abs=1e-15)
-    caught = _UAVMemory(lean=np.array([0.0, 1.0]))       # a gust the lean caught: it fades, the lean pulls back
-    assert drift_forecast(caught, LIM, CFG, 3.0)[1] == pytest.approx(-(p_gust - p_tau) / 3.0)
-    unopposed = _UAVMemory(drift=np.array([1.0, 0.0]), mean_wind=np.array([0.2, 0.0]))   # the air carries it
-    assert drift_forecast(unopposed, UNOPPOSED, CFG, 3.0)[0] == pytest.approx(0.2 + 0.8 * p_gust)
-    same = CFG.replace(gust_memory=LIM.wind_rejection_tau)                   # T = tau: the limit, continuous
-    near = CFG.replace(gust_memory=LIM.wind_rejection_tau * (1.0 + 1e-6))
-    assert drift_forecast(pushed, LIM, same, 3.0) == pytest.approx(drift_forecast(pushed, LIM, near, 3.0), rel=1e-5)
-
-
-def test_drift_forecast_is_the_mean_of_the_expected_drift():
-    """Euler-integrate d' = -d / tau - g / T, g' = -g / T (the expected future of the lean and the gust) finely and
-    average d over the horizon: the closed form agrees."""
-    tau, memory, horizon, n = LIM.wind_rejection_tau, CFG.gust_memory, 2.0, 200000
-    mem = _UAVMemory(drift=np.array([0.4, -0.3]), lean=np.array([0.5, 0.2]), mean_wind=np.array([0.1, 0.3]))
-    d, g, h, total = mem.drift.copy(), mem.lean + mem.drift - mem.mean_wind, horizon / n, np.zeros(2)
-    for _ in range(n):
-        total += d * h
-        d, g = d + h * (-d / tau - g / memory), g - h * g / memory
-    assert drift_forecast(mem, LIM, CFG, horizon) == pytest.approx(total / horizon, abs=1e-5)
-
-
-def test_wind_estimate_follows_the_autopilots_lean():
-    """A hovering UAV in the env's wind model (``dynamics.wind_drift``): a 1 m/s step of air, then 5 m/s (beyond
-    the 3 m/s authority): the estimate's lean is the autopilot's, lean + drift the air."""
-    from uavform_env.dynamics import wind_drift
-    mem, lean, x = _UAVMemory(), np.zeros((1, 3)), 0.0
-    wind_estimate(view(state=(x, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0)), mem, CFG)
-    for air in [1.0] * 20 + [5.0] * 40:
-        drift = wind_drift(np.array([[air, 0.0, 0.0]]), lean, np.array([True]), LIM)
-        x += drift[0, 0] * LIM.dt
-        wind_estimate(view(state=(x, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0)), mem, CFG)
-        assert mem.lean == pytest.approx(lean[0, :2], abs=1e-9) and mem.lean[0] + mem.drift[0] == pytest.approx(air)
-    assert mem.lean[0] == pytest.approx(LIM.wind_authority)
-    gain = min(1.0, LIM.dt / CFG.wind_mean_tau)                           # the steady wind: the air's low-pass
-    assert mem.mean_wind[0] == pytest.approx(5.0 - 4.0 * (1 - gain) ** 40 - (1 - gain) ** 60, rel=1e-9)
+def test_drift_persistence_known_answers():
+    assert drift_persistence(UNOPPOSED, 3.0) == 1.0                       # the wind carries the UAV whole
+    assert drift_persistence(LIM.replace(wind_rejection_tau=0.0), 3.0) == 0.0   # an instant autopilot
+    assert drift_persistence(LIM, math.inf) == 0.0
+    tau = LIM.wind_rejection_tau                                          # d tau (1 - e^(-T/tau)) / T
+    assert drift_persistence(LIM, 3.0) == pytest.approx(tau / 3.0 * (1.0 - math.exp(-3.0 / tau)))
+    assert drift_persistence(LIM, 1e-6) == pytest.approx(1.0, abs=1e-5)  # over an instant all of it
 
 
 def test_dock_approach_flies_the_home_in_law_only_when_docking():

@@ -130,11 +130,10 @@ class ExpertConfig(Config):
                        distance + headwind, pure-pursuit cap) instead of DWA's choice: in gusts DWA flew past the
                        goal and orbited it 1-2 m away. Followers dock with DWA, which keeps them apart [X]
     hold_radius, k_hold, vane_wind  station keeping (``rules.station_keep``): a holding UAV (the arrived leader at
-                       its goal, a UAV with no way to its goal) flies the air velocity k_hold (p_hold - p) - the
-                       drift it forecasts over 1 / k_hold s (``rules.drift_forecast``) (nose toward it, speed
-                       |.| cos(bearing error)); within ``hold_radius`` with that below ``vane_wind`` it stops and
-                       turns to its park heading, and flies back only once the wind has carried it
-                       ``hold_release`` m off: a leader that turned toward every gust swept its
+                       its goal, a UAV with no way to its goal) flies the air velocity k_hold (p_hold - p) - wind
+                       (nose toward it, speed |.| cos(bearing error)); within ``hold_radius`` with that below
+                       ``vane_wind`` it stops and turns to its park heading, and flies back only once the wind
+                       has carried it ``hold_release`` m off: a leader that turned toward every gust swept its
                        followers' slots round the goal (under ``breeze`` a follower chased its slot until time-out,
                        session 7). A UAV hovering at v = 0 otherwise drifts with the wind into whatever is downwind
                        (under the unopposed wind model; with the autopilot of ``UAVLimits.wind_authority`` only the
@@ -149,13 +148,6 @@ class ExpertConfig(Config):
                        (``rules.wind_estimate``: observed minus commanded motion) [X]
     gust_tau           time constant (s) of the mean square of the UAV's drift (``rules.gust_speed``, its root: the
                        drift speed gusts cause, which the wind margins scale with) [X]
-    gust_memory, wind_mean_tau  the drift forecast (``rules.drift_forecast``) that station keeping, ``home_in``'s
-                       headwind and (with ``wind_drift``) DWA's rollouts read: the
-                       UAV follows its autopilot's lean from its own drift (``rules.wind_estimate``), takes the
-                       low-pass of lean + drift over ``wind_mean_tau`` s as the steady wind, and expects a gust (air
-                       minus steady wind) to fade with correlation time ``gust_memory`` s while the lean still follows
-                       it: the drift felt now fades and is followed by a pull back. Until session 13 these readers
-                       took the 1 s low-pass of the drift (``mem.wind``), which points the wrong way [X]
     wind_margin, wind_margin_share  DWA's obstacle voxels grow by ``wind_margin`` (s) x the RMS drift
                        (less ``gust_allowance``), at most ``wind_margin_share`` of the UAV's current clearance (a UAV
                        the gusts carried inside its margin can still hold or leave; ``rules.wind_margin``). A share of
@@ -292,8 +284,6 @@ class ExpertConfig(Config):
     k_hold: float = 0.5
     wind_tau: float = 1.0
     gust_tau: float = 5.0
-    wind_mean_tau: float = 10.0
-    gust_memory: float = 2.0
     hold_drift_time: float = 4.5
     hold_search: float = 4.0
     wind_drift: bool = False
@@ -354,7 +344,7 @@ class ExpertConfig(Config):
                                             "guard_hover_speed", "path_margin",
                                             "margin_detour", "repark_time", "repark_radius",
                                             "gust_allowance", "route_keep_margin")},
-        **{name: in_range(0.0, lo_open=True) for name in ("wind_tau", "gust_tau", "wind_mean_tau", "gust_memory")},
+        **{name: in_range(0.0, lo_open=True) for name in ("wind_tau", "gust_tau")},
         "leader_speed_cap": in_range(0.0, 1.0, lo_open=True),
         "yield_factor": in_range(0.0, 1.0),
         "wind_margin_share": in_range(0.0, 1.0),

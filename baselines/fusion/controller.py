@@ -33,7 +33,7 @@ from .config import ExpertConfig
 from .kernels import (closest_approach_of, columns_without_gap, gap_altitude_kernel, in_sphere, live_within,
                       mark_cells, open_level_way, predicted_movers, segment_clear, slot_errors, surface_clearance,
                       trail_lags)
-from .rules import (RULES, Command, Cycle, bearing_error, clamp, drift_forecast, fence_clearance, gust_speed,
+from .rules import (RULES, Command, Cycle, bearing_error, clamp, drift_persistence, fence_clearance, gust_speed,
                     leader_parked, station_keep, wind_estimate, wind_margin)
 
 
@@ -58,9 +58,6 @@ class _UAVMemory(PlannerMemory):
     best_goal_distance: float = math.inf
     last_progress_time: float = 0.0
     wind: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    drift: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    lean: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    mean_wind: np.ndarray = field(default_factory=lambda: np.zeros(2))
     drift_ms: float = 0.0
     prev_pose: tuple | None = None
     held: bool = False
@@ -351,7 +348,7 @@ class FusionExpert(OnboardPolicy):
         alive_pos, alive_vel = (local.movers_pos, local.movers_vel) if all(alive.tolist()) else \
             (local.movers_pos[alive], local.movers_vel[alive])
         still = mem.wind[0] == 0.0 and mem.wind[1] == 0.0
-        drift = drift_forecast(mem, lim, cfg, dwa_cfg.T_p) if cfg.wind_drift and not still else None
+        drift = mem.wind * drift_persistence(lim, dwa_cfg.T_p) if cfg.wind_drift and not still else None
 
         def plan(vz):
             return self.dwa(s, lim, dwa_cfg, vertical.heading_goal, obstacles, radii, vz_cmd=vz,

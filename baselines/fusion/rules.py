@@ -130,8 +130,7 @@ def drift_guard(cmd: Command, c: Cycle) -> None:
     """[X] ``guard_clearance``, ``guard_speed``: with no admissible DWA sample, a UAV whose clearance to the nearest
     obstacle point (own-map voxel or world bound) beside it is below ``guard_clearance`` does not brake to a
     hover, which the wind pushes on into the obstacle, but turns its nose away from that point and flies
-    off at ``guard_speed`` plus the estimated wind toward the point (``mem.wind``: the push it feels, not
-    ``drift_forecast``'s mean drift over a horizon, which left it too slow: session 13), times the cosine of its
+    off at ``guard_speed`` plus the estimated wind toward the point (``mem.wind``), times the cosine of its
     bearing error (0 beyond 90 degrees). A point more above or
     below than beside is the emergency escape's case (g5).
     [X] ``guard_gust_time``, ``guard_hover_speed``: in gusts the guard's clearance grows by ``guard_gust_time`` x the
@@ -216,8 +215,8 @@ RULES = (braking_fallback, dock_turn, dock_approach, reverse_turn, gap_turn, dri
 def station_keep(view, mem, cfg, hold_xy, heading: float) -> Command:
     """[X] ``hold_radius``, ``k_hold``, ``vane_wind``: a UAV holding a point (the arrived leader at its goal; a UAV
     with no way to its goal, where it stopped) keeps it against the wind. The air velocity it needs is
-    u = k_hold (p_hold - p) - f (return to the point and cancel f, the mean drift its own drift forecasts over
-    1 / k_hold s: ``drift_forecast``, in which the autopilot's lean cancels the rest);
+    u = k_hold (p_hold - p) - w (return to the point and cancel the wind ``mem.wind`` its own drift estimates);
+    of the drift only what persists over 1 / k_hold s (``drift_persistence``: the autopilot cancels the rest);
     a unicycle with v >= 0 has no lateral control, so it turns its nose toward u and flies at |u| times the
     cosine of the bearing error (0 beyond 90 degrees). Within ``hold_radius`` of the point with |u| below
     ``vane_wind`` (still air) it stops and turns to ``heading``, and stays stopped (``mem.held``) until the wind
@@ -225,7 +224,7 @@ def station_keep(view, mem, cfg, hold_xy, heading: float) -> Command:
     slots. The returned ``vz`` is 0 (the caller holds altitude)."""
     s, lim = view.state, view.limits
     to_hold = np.asarray(hold_xy, dtype=np.float64) - s[:2]
-    u = cfg.k_hold * to_hold - drift_forecast(mem, lim, cfg, hold_horizon(cfg))
+    u = cfg.k_hold * to_hold - mem.wind * drift_persistence(lim, 1.0 / cfg.k_hold if cfg.k_hold > 0.0 else math.inf)
     speed, dist = math.hypot(u[0], u[1]), math.hypot(to_hold[0], to_hold[1])
     mem.held = dist <= cfg.hold_release if mem.held else dist <= cfg.hold_radius and speed <= cfg.vane_wind
     if mem.held:
@@ -236,9 +235,9 @@ def station_keep(view, mem, cfg, hold_xy, heading: float) -> Command:
 
 def home_in(view, mem, cfg, point_xy) -> Command:
     """Fly to a fixed point without orbiting it: turn toward it (in place while it lies more than
-    ``dock_turn_angle`` off the nose) and fly at ``k_hold`` times the distance plus the headwind of the drift the
-    UAV forecasts over 1 / k_hold s (``drift_forecast``), scaled by the cosine of the bearing error and capped at
-    the pure-pursuit speed that still steers onto the point (so the turn-rate limit never carries it round it)."""
+    ``dock_turn_angle`` off the nose) and fly at ``k_hold`` times the distance plus the headwind the UAV's own
+    drift estimates (``mem.wind``), scaled by the cosine of the bearing error and capped at the pure-pursuit
+    speed that still steers onto the point (so the turn-rate limit never carries it round the point)."""
     s, lim = view.state, view.limits
     to_point = np.asarray(point_xy, dtype=np.float64) - s[:2]
     dist = math.hypot(to_point[0], to_point[1])
@@ -248,7 +247,7 @@ def home_in(view, mem, cfg, point_xy) -> Command:
     w = clamp(err, -lim.w_max, lim.w_max)
     if abs(err) > cfg.dock_turn_angle:
         return Command(0.0, w, 0.0, turning=True)
-    headwind = max(0.0, -float(drift_forecast(mem, lim, cfg, hold_horizon(cfg)) @ to_point) / dist)
+    headwind = max(0.0, -float(mem.wind @ to_point) / dist)
     v = (cfg.k_hold * dist + headwind) * math.cos(err)
     sin_err = abs(math.sin(err))
     if sin_err > 1e-9:
@@ -257,16 +256,12 @@ def home_in(view, mem, cfg, point_xy) -> Command:
 
 
 def wind_estimate(view, mem, cfg) -> None:
-    """[X] ``wind_tau``, ``gust_tau``, ``wind_mean_tau``: the horizontal wind from the UAV's own drift. The last
-    cycle's pose moved by the commands now in its state (the kinematic model of spec (a)) predicts this pose; what is
-    left over per second is the drift ``mem.drift`` (the wind its autopilot has not compensated), low-pass filtered
-    with time constant ``wind_tau`` into ``mem.wind``, and its squared speed with ``gust_tau`` into ``mem.drift_ms``.
-    The autopilot leans into the air with time constant tau = ``wind_rejection_tau`` and the UAV drifts with
-    air - lean (``uavform_env.dynamics.wind_drift``), so each drift d tells the lean's step, d (e^(dt / tau) - 1)
-    (capped at ``wind_authority``): ``mem.lean`` follows the autopilot's lean, lean + d is the air, and its low-pass
-    over ``wind_mean_tau`` the steady wind ``mem.mean_wind`` (``drift_forecast`` reads them; all zero in still air)."""
-    lim = view.limits
-    dt = lim.dt
+    """[X] ``wind_tau``, ``gust_tau``: the horizontal wind from the UAV's own drift. The last cycle's pose moved by
+    the commands now in its state (the kinematic model of spec (a)) predicts this pose; what is left over per
+    second is the drift (the wind its autopilot has not compensated), low-pass filtered with time constant
+    ``wind_tau`` into ``mem.wind``, and its squared speed with ``gust_tau`` into ``mem.drift_ms`` (both zero in
+    still air)."""
+    dt = view.limits.dt
     s = view.state.tolist()                     # floats: the numpy scalars' values, without their glue
     x_now, y_now, psi_now, v, w = s[0], s[1], s[PSI], s[V], s[W]
     prev = mem.prev_pose
@@ -276,45 +271,7 @@ def wind_estimate(view, mem, cfg) -> None:
         gain, wind_x, wind_y = min(1.0, dt / cfg.wind_tau), float(mem.wind[0]), float(mem.wind[1])
         mem.wind = np.array([wind_x + gain * (drift_x - wind_x), wind_y + gain * (drift_y - wind_y)])
         mem.drift_ms += min(1.0, dt / cfg.gust_tau) * (drift_x * drift_x + drift_y * drift_y - mem.drift_ms)
-        lean_x, lean_y = float(mem.lean[0]), float(mem.lean[1])
-        if lim.wind_authority > 0.0 and lim.wind_rejection_tau > 0.0:
-            step = math.expm1(dt / lim.wind_rejection_tau)
-            lean_x, lean_y = lean_x + step * drift_x, lean_y + step * drift_y
-            scale = min(1.0, lim.wind_authority / max(math.hypot(lean_x, lean_y), 1e-300))
-            lean_x, lean_y = lean_x * scale, lean_y * scale
-        gain, mean_x, mean_y = min(1.0, dt / cfg.wind_mean_tau), float(mem.mean_wind[0]), float(mem.mean_wind[1])
-        mem.mean_wind = np.array([mean_x + gain * (lean_x + drift_x - mean_x),
-                                  mean_y + gain * (lean_y + drift_y - mean_y)])
-        mem.lean, mem.drift = np.array([lean_x, lean_y]), np.array([drift_x, drift_y])
     mem.prev_pose = (x_now, y_now, psi_now)
-
-
-def drift_forecast(mem, lim, cfg, horizon: float) -> np.ndarray:
-    """[X] ``gust_memory``: the UAV's mean drift velocity (x, y; m/s) over the next ``horizon`` s, from the drift d
-    it feels now, the autopilot's lean and the steady wind (``wind_estimate``). The gusts g = air - steady wind
-    relax to 0 with the correlation time T = ``gust_memory`` (an Ornstein-Uhlenbeck gust's expected future); the
-    lean follows the air with tau = ``wind_rejection_tau``, so the drift d' + d / tau = -g / T has the expected
-    future d(s) = d e^(-s/tau) - g tau / (T - tau) (e^(-s/T) - e^(-s/tau)): a gust's push fades, then the lean it
-    built pulls the UAV back. Its mean over the horizon is d P(tau) - g tau / (T - tau) (P(T) - P(tau)), with
-    P(t) = t / horizon (1 - e^(-horizon / t)). With no wind authority the drift is the air: the steady wind plus
-    the gust's mean, g P(T). An infinite horizon (or an instant autopilot) forecasts no drift."""
-    tau, memory = lim.wind_rejection_tau, cfg.gust_memory
-    if horizon == math.inf:
-        return np.zeros(2)
-
-    def mean_share(t):                          # mean of e^(-s/t) over [0, horizon]
-        return t / horizon * -math.expm1(-horizon / t)
-
-    if lim.wind_authority == 0.0:
-        return mem.mean_wind + (mem.drift - mem.mean_wind) * mean_share(memory)
-    if tau == 0.0:
-        return np.zeros(2)
-    gust = mem.lean + mem.drift - mem.mean_wind
-    if abs(memory - tau) > 1e-9 * tau:
-        pull = tau / (memory - tau) * (mean_share(memory) - mean_share(tau))
-    else:                                       # T = tau: the mean of (s / tau) e^(-s/tau)
-        pull = tau / horizon * (-math.expm1(-horizon / tau) - horizon / tau * math.exp(-horizon / tau))
-    return mem.drift * mean_share(tau) - gust * pull
 
 
 def gust_speed(mem) -> float:
@@ -348,9 +305,17 @@ def fence_clearance(pos, bounds_lo, bounds_hi, r_uav: float) -> float:
 
 
 # ---------------------------------------------------------------------- helpers (the controller uses them too)
-def hold_horizon(cfg) -> float:
-    """The horizon (s) of a hold's drift forecast: 1 / k_hold, the time its return law takes (inf at k_hold 0)."""
-    return 1.0 / cfg.k_hold if cfg.k_hold > 0.0 else math.inf
+def drift_persistence(lim, horizon: float) -> float:
+    """The share of a drift d felt now that carries on over ``horizon`` s, as a constant velocity with the same
+    displacement: the airframe's autopilot cancels it with time constant tau = ``wind_rejection_tau``, so the UAV
+    moves d tau (1 - exp(-horizon / tau)) (``uavform_env.dynamics.wind_drift``); with no wind authority the wind
+    carries it whole (1)."""
+    tau = lim.wind_rejection_tau
+    if lim.wind_authority == 0.0:
+        return 1.0
+    if tau == 0.0 or horizon == math.inf:
+        return 0.0
+    return tau / horizon * -math.expm1(-horizon / tau)
 
 
 def clamp(x: float, lo: float, hi: float) -> float:
