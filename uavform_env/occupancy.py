@@ -627,10 +627,10 @@ def _integrate_one(tables, values, bits, counts, owner, used, stamps, stamp, dir
     the stamp _SETTLED, set by the miss that clamped them and replaced by the next hit, and the walk leaves
     them as they are on that one byte. The walk does not branch on the stamp (most voxels it visits are
     settled or done in this scan, a condition hard to foresee): it works the miss out for every voxel and
-    stores it, or writes the voxel back unchanged (3-9 % faster in the env than the branch). The walk keeps
-    the last block looked up and resolves a block only when it enters one (the lookup is written out here:
-    an inlined helper that may call ``_new_block`` costs refcounting on every voxel; so does one that takes
-    arrays and returns a value, 3-4x slower measured).
+    stores it, or writes the voxel back unchanged (faster than the branch: docs/speed.md, session 13). The
+    walk keeps the last block looked up and resolves a block only when it enters one (the lookup is written
+    out here: an inlined helper that may call ``_new_block``, or one that takes arrays and returns a value,
+    costs refcounting on every voxel).
     """
     nx, ny, nz = shape[0], shape[1], shape[2]
     top, chunks = tables
