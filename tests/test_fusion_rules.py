@@ -197,6 +197,22 @@ def test_station_keep_counters_only_the_drift_the_autopilot_leaves_and_holds_unt
     assert station_keep(view(), fresh, CFG, np.array([0.3, 0.0]), 0.0).v > 0.0 and not fresh.held
 
 
+def test_station_keep_in_gusts_rests_within_the_gust_excursion():
+    gusty = _UAVMemory(drift_ms=0.25)                                     # RMS drift 0.5 m/s > vane_wind
+    slack = CFG.hold_gust_time * 0.5
+    off = CFG.hold_radius + slack - 0.01                                  # still air would fly back from here
+    cmd = station_keep(view(), gusty, CFG, np.array([off, 0.0]), 0.3)
+    assert gusty.held and cmd.v == 0.0 and cmd.w == pytest.approx(0.3)    # rests, turns to the park heading only
+    cmd = station_keep(view(), gusty, CFG, np.array([CFG.hold_release + slack - 0.01, 0.0]), 0.0)
+    assert gusty.held and cmd.v == 0.0
+    cmd = station_keep(view(), gusty, CFG, np.array([CFG.hold_release + slack + 0.01, 0.0]), 0.0)
+    assert not gusty.held and cmd.v > 0.0                                 # carried beyond it: flies back
+    breeze = _UAVMemory(drift_ms=0.05 ** 2)                               # RMS drift below vane_wind: still-air radii
+    assert station_keep(view(), breeze, CFG, np.array([off, 0.0]), 0.0).v > 0.0 and not breeze.held
+    assert station_keep(view(), _UAVMemory(drift_ms=0.25), CFG.replace(hold_gust_time=0.0),
+                        np.array([off, 0.0]), 0.0).v > 0.0                # hold_gust_time = 0: the still-air rule
+
+
 def test_drift_persistence_known_answers():
     assert drift_persistence(UNOPPOSED, 3.0) == 1.0                       # the wind carries the UAV whole
     assert drift_persistence(LIM.replace(wind_rejection_tau=0.0), 3.0) == 0.0   # an instant autopilot

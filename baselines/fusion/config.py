@@ -138,6 +138,10 @@ class ExpertConfig(Config):
                        session 7). A UAV hovering at v = 0 otherwise drifts with the wind into whatever is downwind
                        (under the unopposed wind model; with the autopilot of ``UAVLimits.wind_authority`` only the
                        gusts' changes carry it) [X]
+    hold_gust_time     in gusts (the RMS drift above ``vane_wind``) the hold and release radii grow by this times
+                       the RMS drift, and the holding UAV rests in any wind: the gusts carry an autopilot-held UAV
+                       about that far and back, and a parked leader that flew back after each excursion turned
+                       its nose, and its followers' slots, round the goal until the time-out (session 14) [X]
     hold_drift_time, hold_search  a UAV with no way to its goal holds the nearest point within ``hold_search`` m
                        (reached along a clear straight segment) whose horizontal clearance to its own map near the
                        flight altitude and to the world's bounds is at least r_safe plus the drift the estimated wind
@@ -281,6 +285,7 @@ class ExpertConfig(Config):
     gap_turn_angle: float = math.radians(45.0)
     hold_radius: float = 0.25
     hold_release: float = 0.4
+    hold_gust_time: float = 3.0
     k_hold: float = 0.5
     wind_tau: float = 1.0
     gust_tau: float = 5.0
@@ -338,8 +343,9 @@ class ExpertConfig(Config):
                                             "column_hold", "vfh_neighbour_radius", "rejoin_distance", "dock_radius",
                                             "trail_spacing", "arrive_radius", "stuck_window", "gap_lookahead",
                                             "gap_depth", "gap_margin", "k_gap", "gap_speed", "leader_stopped_speed",
-                                            "hold_radius", "hold_release", "k_hold", "separation_margin",
-                                            "hold_drift_time", "hold_search", "glide_slope", "wind_margin", "vane_wind",
+                                            "hold_radius", "hold_release", "hold_gust_time", "k_hold",
+                                            "separation_margin", "hold_drift_time", "hold_search", "glide_slope",
+                                            "wind_margin", "vane_wind",
                                             "approach_radius", "guard_clearance", "guard_speed", "guard_gust_time",
                                             "guard_hover_speed", "path_margin",
                                             "margin_detour", "repark_time", "repark_radius",

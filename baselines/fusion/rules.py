@@ -221,12 +221,20 @@ def station_keep(view, mem, cfg, hold_xy, heading: float) -> Command:
     cosine of the bearing error (0 beyond 90 degrees). Within ``hold_radius`` of the point with |u| below
     ``vane_wind`` (still air) it stops and turns to ``heading``, and stays stopped (``mem.held``) until the wind
     has carried it ``hold_release`` from the point: every return turns the nose, and with it a leader's follower
-    slots. The returned ``vz`` is 0 (the caller holds altitude)."""
+    slots. [X] ``hold_gust_time``: in gusts (RMS drift, ``gust_speed``, above ``vane_wind``) both radii grow by
+    ``hold_gust_time`` x the RMS drift and the still-air condition goes: an autopilot-held UAV is carried by the
+    gusts' changes only (``UAVLimits.wind_authority``: tau x the change of its lean), about that far and back, so
+    chasing each excursion only turns the nose round. The returned ``vz`` is 0 (the caller holds altitude)."""
     s, lim = view.state, view.limits
     to_hold = np.asarray(hold_xy, dtype=np.float64) - s[:2]
     u = cfg.k_hold * to_hold - mem.wind * drift_persistence(lim, 1.0 / cfg.k_hold if cfg.k_hold > 0.0 else math.inf)
     speed, dist = math.hypot(u[0], u[1]), math.hypot(to_hold[0], to_hold[1])
-    mem.held = dist <= cfg.hold_release if mem.held else dist <= cfg.hold_radius and speed <= cfg.vane_wind
+    gusts = gust_speed(mem)
+    slack = cfg.hold_gust_time * gusts if gusts > cfg.vane_wind else 0.0
+    if mem.held:
+        mem.held = dist <= cfg.hold_release + slack
+    else:
+        mem.held = dist <= cfg.hold_radius + slack and (slack > 0.0 or speed <= cfg.vane_wind)
     if mem.held:
         return Command(0.0, clamp(wrap(heading - s[PSI]), -lim.w_max, lim.w_max), 0.0)
     err = bearing_error(s, u)
