@@ -222,7 +222,8 @@ def station_keep(view, mem, cfg, hold_xy, heading: float) -> Command:
     ``vane_wind`` (still air) it stops and turns to ``heading``, and stays stopped (``mem.held``) until the wind
     has carried it ``hold_release`` from the point: every return turns the nose, and with it a leader's follower
     slots. [X] ``hold_gust_time``: in gusts (RMS drift, ``gust_speed``, above ``vane_wind``) both radii grow by
-    ``hold_gust_time`` x the RMS drift and the still-air condition goes: an autopilot-held UAV is carried by the
+    ``hold_gust_time`` x the RMS drift and the still-air condition goes, on an airframe that leans into the wind
+    (with the unopposed model a resting UAV drifts with the whole wind): an autopilot-held UAV is carried by the
     gusts' changes only (``UAVLimits.wind_authority``: tau x the change of its lean), about that far and back, so
     chasing each excursion only turns the nose round. The returned ``vz`` is 0 (the caller holds altitude)."""
     s, lim = view.state, view.limits
@@ -230,7 +231,7 @@ def station_keep(view, mem, cfg, hold_xy, heading: float) -> Command:
     u = cfg.k_hold * to_hold - mem.wind * drift_persistence(lim, 1.0 / cfg.k_hold if cfg.k_hold > 0.0 else math.inf)
     speed, dist = math.hypot(u[0], u[1]), math.hypot(to_hold[0], to_hold[1])
     gusts = gust_speed(mem)
-    slack = cfg.hold_gust_time * gusts if gusts > cfg.vane_wind else 0.0
+    slack = cfg.hold_gust_time * gusts if gusts > cfg.vane_wind and lim.wind_authority > 0.0 else 0.0
     if mem.held:
         mem.held = dist <= cfg.hold_release + slack
     else:
