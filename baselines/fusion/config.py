@@ -139,7 +139,8 @@ class ExpertConfig(Config):
                        (under the unopposed wind model; with the autopilot of ``UAVLimits.wind_authority`` only the
                        gusts' changes carry it) [X]
     hold_gust_time     in gusts (the RMS drift above ``vane_wind``) the hold and release radii grow by this times
-                       the RMS drift, and the holding UAV rests in any wind: the gusts carry an autopilot-held UAV
+                       the RMS drift, and on an airframe that leans into the wind (``UAVLimits.wind_authority``
+                       > 0) the holding UAV rests in any wind: the gusts carry an autopilot-held UAV
                        about that far and back, and a parked leader that flew back after each excursion turned
                        its nose, and its followers' slots, round the goal until the time-out (session 14) [X]
     hold_drift_time, hold_search  a UAV with no way to its goal holds the nearest point within ``hold_search`` m

@@ -232,10 +232,8 @@ def station_keep(view, mem, cfg, hold_xy, heading: float) -> Command:
     speed, dist = math.hypot(u[0], u[1]), math.hypot(to_hold[0], to_hold[1])
     gusts = gust_speed(mem)
     slack = cfg.hold_gust_time * gusts if gusts > cfg.vane_wind and lim.wind_authority > 0.0 else 0.0
-    if mem.held:
-        mem.held = dist <= cfg.hold_release + slack
-    else:
-        mem.held = dist <= cfg.hold_radius + slack and (slack > 0.0 or speed <= cfg.vane_wind)
+    radius = (cfg.hold_release if mem.held else cfg.hold_radius) + slack
+    mem.held = dist <= radius and (mem.held or slack > 0.0 or speed <= cfg.vane_wind)
     if mem.held:
         return Command(0.0, clamp(wrap(heading - s[PSI]), -lim.w_max, lim.w_max), 0.0)
     err = bearing_error(s, u)
