@@ -49,6 +49,14 @@ class DWAConfig(Config):
     ``R_sw=None`` means one horizon of travel at full speed, ``UAVLimits.v_max * T_p``.
     ``R_uu`` is the separation to moving neighbours below which a sample is inadmissible (g6).
     ``dist_cap`` [X]: the clearance at which the dist term saturates (None: ``D_cap``, as in (b5)).
+    ``brake_share`` [X]: the braking test of (b6) asks for a clearance of at least ``brake_share`` x d_brake(v). 1 (the
+    default) is the clearance form of (b6), which counts a wall beside the path as one ahead: flying 1 m beside a
+    wall holds v at sqrt(2 a_max x 1 m). Below 1 the free arc also counts, Fox's form v <= sqrt(2 dist a_max) with
+    dist the free arc length along the sample's curvature: every rollout runs on at (v, w) past T_p for the stopping
+    time of the window's top speed, v_hi / (2 a_max), and that longer arc must be collision-free (c > 0), so a UAV
+    can still stop where the horizon ends (the sample's clearance, in the dist term too, is that arc's). Share 0 then
+    slows a UAV only for obstacles on its path.
+    ``dwa_plan(brake_share=...)`` overrides it for one cycle.
     Sum normalisation over the admissible samples turns centimetre clearance differences among the
     slow samples of a small window into the largest term, so with an obstacle inside ``D_cap`` the
     planner prefers standing still; a lower cap lets only genuinely close obstacles rank samples.
@@ -80,6 +88,7 @@ class DWAConfig(Config):
     rot_weight_mode: str = "proximity"
     R_uu: float = 0.8
     dist_cap: float | None = None
+    brake_share: float = 1.0
 
     BOUNDS: ClassVar[dict] = {
         "T_p": in_range(0.0, 60.0, lo_open=True),
@@ -88,6 +97,7 @@ class DWAConfig(Config):
         "norm": one_of(NORM_MODES),
         **{name: boolean for name in IMPROVEMENT_FLAGS + ("approach_speed_profile",)},
         "kappa": in_range(0.0, 1.0, hi_open=True),
+        "brake_share": in_range(0.0, 1.0),
         "R_sw": optional(in_range(0.0, lo_open=True)),
         "heading_ref": one_of(HEADING_REFS),
         "astar_weight_mode": one_of(ASTAR_WEIGHT_MODES),
@@ -125,7 +135,7 @@ class DWAConfig(Config):
 class DWACandidates:
     """Every sample of one planning cycle, for diagnostics and plots (inadmissible score = -inf).
 
-    ``clearance`` is exact below max(D_cap, d_brake(v)) and capped there; for an inadmissible
+    ``clearance`` is exact below max(D_cap, the braking test's clearance) and capped there; for an inadmissible
     sample it is only some value below the admissibility bound (evaluation stops early).
     """
 
@@ -142,7 +152,7 @@ class DWAResult:
     """The chosen command; ``admissible=False`` is the braking fallback of spec (b10) (a 'stuck' step).
 
     ``endpoint`` (x, y, z) and ``clearance`` belong to the chosen rollout (for the fallback: the
-    braking rollout); the clearance is capped at max(D_cap, d_brake(v)). ``alignment`` is the E10
+    braking rollout); the clearance is capped at max(D_cap, the braking test's clearance). ``alignment`` is the E10
     cosine c of that endpoint against the lookahead direction; feed it back as ``prev_alignment``
     for the per-step and alignment modes.
     """
@@ -670,6 +680,7 @@ class _Params(NamedTuple):
     minmax: bool
     drift_x: float
     drift_y: float
+    brake_share: float
 
 
 @numba.njit(cache=True)
@@ -688,17 +699,19 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, obstacles, radii, movers_pos, mo
     vs, ws = _window_grid(v_lo, v_hi, w_lo, w_hi, p.v_res, p.w_res)
     n_samples = vs.shape[0]
     x0, y0, z0, psi0 = state[0], state[1], state[2], state[3]
-    yaw = _yaw_table(psi0, w_axis, dt, n_steps)
+    # brake_share < 1: each rollout runs on for the stopping time of the window's top speed (its free arc)
+    n_roll = n_steps + (int(math.ceil(v_hi / (2.0 * p.a_max) / dt - 1e-9)) if p.brake_share < 1.0 else 0)
+    yaw = _yaw_table(psi0, w_axis, dt, n_roll)
     track = _mover_track(dt, n_steps, movers_pos, movers_vel)
-    n_blocks = (n_steps + _BLOCK - 1) // _BLOCK
-    paths = np.empty((n_samples, n_steps, 3))
+    n_blocks = (n_roll + _BLOCK - 1) // _BLOCK
+    paths = np.empty((n_samples, n_roll, 3))
     spheres = np.empty((n_samples, n_blocks + 1, 4))
     reach = np.empty(n_samples)
     drifting = drift_x != 0.0 or drift_y != 0.0
     for i in range(n_samples):
         _rollout_table(x0, y0, z0, vs[i], vz, dt, yaw[i % n_w], paths[i])
         if drifting:                                    # the wind carries every rollout along
-            for k in range(n_steps):
+            for k in range(n_roll):
                 paths[i, k, 0] += drift_x * (k + 1) * dt
                 paths[i, k, 1] += drift_y * (k + 1) * dt
         reach[i] = _path_spheres(paths[i], x0, y0, z0, spheres[i])
@@ -713,10 +726,12 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, obstacles, radii, movers_pos, mo
     rho_d = math.hypot(p.goal_x - x0, p.goal_y - y0)
     bearing_now = math.atan2(p.goal_y - y0, p.goal_x - x0)
     # no rollout gets farther than the fastest one; beyond its reach plus the clearance cap nothing counts
-    far = (dt * n_steps * (math.sqrt(v_hi * v_hi + vz * vz) + math.hypot(drift_x, drift_y))
+    far = (dt * n_roll * (math.sqrt(v_hi * v_hi + vz * vz) + math.hypot(drift_x, drift_y))
            + max(p.D_cap, v_hi * v_hi / (2.0 * p.a_max)) + p.r_uav)
     obstacles, rads, lows = _nearby(obstacles, radii, x0, y0, z0, far, p.r_uav)
     d_brake = vs * vs / (2.0 * p.a_max)
+    if p.brake_share < 1.0:                             # the stopping arcs (the tails) keep the rest
+        d_brake = p.brake_share * d_brake
     caps = np.maximum(p.D_cap, d_brake)
     stop_below = np.full(n_samples, -math.inf) if exact_clearance else d_brake
     # every search starts at its cap or an attained value; one candidate list serves all rollouts
@@ -727,7 +742,7 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, obstacles, radii, movers_pos, mo
         c = _static_clearance(path, spheres[i], reach[i], obstacles, rads, lows, keep, mask, start[i], stop_below[i])
         ok = c > 0.0 and c >= d_brake[i]
         if (ok or exact_clearance) and movers_pos.shape[0] > 0:
-            c_mover = _mover_clearance(path, track, p.R_uu)
+            c_mover = _mover_clearance(path[:n_steps], track, p.R_uu)
             ok = ok and c_mover >= 0.0
             c = min(c, c_mover)
         clearance[i] = c
@@ -819,7 +834,7 @@ def _rotation_weight(cfg: DWAConfig, clearance_now: float, prev_alignment: float
 def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle_radius, *,
              vz_cmd: float = 0.0, lookahead=None, clearance_now: float = math.inf, movers_pos=None,
              movers_vel=None, v_ref: float | None = None, v_cap: float | None = None,
-             prev_alignment: float | None = None, drift=None) -> DWAResult:
+             prev_alignment: float | None = None, drift=None, brake_share: float | None = None) -> DWAResult:
     """One DWA planning cycle: the best admissible (v, w) of the dynamic window (spec (b), (c)).
 
     state: (7,) row (x, y, z, psi, v, w, vz). goal, lookahead: (2,) or (3,); only x, y are used;
@@ -828,12 +843,13 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
     clearance_now: the UAV's current clearance d_min (E11 proximity weight).
     movers_pos, movers_vel: (K, 3) neighbours, predicted at constant velocity and compared at the
     same time step; a sample closer than R_uu to one is inadmissible and the gap minus R_uu counts
-    in the dist term. The braking test c >= d_brake(v) applies to static obstacles only: braking
+    in the dist term. The braking test (``brake_share``) applies to static obstacles only: braking
     does not open the gap to a moving neighbour, and it would forbid formation speed at 2 m spacing.
     v_ref: follower speed matching of spec (g2), vel = 1 - |v - v_ref| / v_max (overrides the
     approach speed profile). v_cap: speed cap (leader cap, deadlock yield).
     prev_alignment: c of the previous cycle's choice (E10 per_step, E11 alignment; None -> 1).
     drift: (2,) horizontal velocity (m/s) added to every rollout, e.g. a wind estimate (None: still air).
+    brake_share: this cycle's ``DWAConfig.brake_share`` (None: the config's).
     If no sample is admissible, brakes: v = v_lo (= max(0, v0 - a_max dt) for v_min = 0), w = w0.
     """
     try:
@@ -862,6 +878,10 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
         if d.shape != (2,) or not np.all(np.isfinite(d)):
             raise ValueError(f"drift={drift!r}: expected a finite (2,) horizontal velocity in m/s")
         drift_x, drift_y = float(d[0]), float(d[1])
+    if brake_share is None:
+        brake_share = cfg.brake_share
+    elif not 0.0 <= _finite("brake_share", brake_share) <= 1.0:
+        raise ValueError(f"brake_share={brake_share!r}: expected a share in [0, 1]")
     n_steps = round(cfg.T_p / limits.dt)
     if n_steps < 1:
         raise ValueError(f"DWAConfig.T_p={cfg.T_p!r} is shorter than one step (UAVLimits.dt={limits.dt!r})")
@@ -891,7 +911,7 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
                      float(vel_target), float(w0 if cfg.rotation_mode == "delta" else 0.0), float(alpha),
                      float(cfg.kappa), per_candidate, float(cfg.beta), float(cfg.gamma),
                      float(_rotation_weight(cfg, clearance_now, prev_alignment)), cfg.norm == "minmax",
-                     drift_x, drift_y)
+                     drift_x, drift_y, float(brake_share))
     params = tuple(params)             # plain: see _plan_kernel
 
     def run(v_lo_, v_hi_, w_lo_, w_hi_, exact_clearance):

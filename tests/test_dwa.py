@@ -29,6 +29,17 @@ NO_OBSTACLES = np.empty((0, 3))
 # ----------------------------------------------------------------------------- reference
 
 
+def braking_clearance(vs, lim, cfg):
+    """The clearance the braking test asks of each speed: the share ``brake_share`` of d_brake(v) = v^2 / (2 a_max)."""
+    return cfg.brake_share * vs ** 2 / (2 * lim.a_max)
+
+
+def rollout_steps(vs, lim, cfg):
+    """Steps of each rollout's clearance: T_p, and with a braking share below 1 the stopping time of the top speed."""
+    n = round(cfg.T_p / lim.dt)
+    return n + (math.ceil(vs.max() / (2 * lim.a_max) / lim.dt - 1e-9) if cfg.brake_share < 1 else 0)
+
+
 def reference_plan(state, lim, cfg, goal, obstacles, radii, lookahead=None, clearance_now=math.inf,
                    movers_pos=None, movers_vel=None, v_ref=None, prev_alignment=None):
     """Straightforward numpy re-implementation of spec (b) + (c), written from the spec formulas.
@@ -38,23 +49,24 @@ def reference_plan(state, lim, cfg, goal, obstacles, radii, lookahead=None, clea
     vs, ws = window_samples(state[4], state[5], lim, cfg)
     n = round(cfg.T_p / lim.dt)
     dt = lim.dt
-    psi_k = state[3] + np.outer(ws, np.arange(1, n + 1)) * dt  # yaw first, unwrapped
+    psi_k = state[3] + np.outer(ws, np.arange(1, rollout_steps(vs, lim, cfg) + 1)) * dt  # yaw first, unwrapped
     xs = state[0] + np.cumsum(vs[:, None] * np.cos(psi_k) * dt, axis=1)
     ys = state[1] + np.cumsum(vs[:, None] * np.sin(psi_k) * dt, axis=1)
     zs = np.full(xs.shape, state[2])
-    pts = np.stack([xs, ys, zs], axis=-1)  # (S, n, 3)
+    pts = np.stack([xs, ys, zs], axis=-1)  # (S, n + tail, 3): the clearance's arc
+    xs, ys, psi_k = xs[:, :n], ys[:, :n], psi_k[:, :n]
     if len(obstacles):
         gaps = np.linalg.norm(pts[:, :, None, :] - obstacles[None, None], axis=-1) - radii - lim.r_uav
         c_static = gaps.min(axis=(1, 2))
     else:
         c_static = np.full(len(vs), np.inf)
-    d_brake = vs ** 2 / (2 * lim.a_max)
+    d_brake = braking_clearance(vs, lim, cfg)
     adm = (c_static > 0) & (c_static >= d_brake)
     clearance = c_static.copy()
     if movers_pos is not None:
         t = np.arange(1, n + 1)[:, None, None] * dt
         m_pos = movers_pos[None] + movers_vel[None] * t  # (n, K, 3)
-        c_mover = (np.linalg.norm(pts[:, :, None, :] - m_pos[None], axis=-1) - cfg.R_uu).min(axis=(1, 2))
+        c_mover = (np.linalg.norm(pts[:, :n, None, :] - m_pos[None], axis=-1) - cfg.R_uu).min(axis=(1, 2))
         adm &= c_mover >= 0
         clearance = np.minimum(clearance, c_mover)
     ex, ey, psi_end = xs[:, -1], ys[:, -1], psi_k[:, -1]
@@ -138,7 +150,8 @@ def random_scene(data, with_movers):
                                         ("IDWA", {"astar_weight_mode": "per_step", "rotation_mode": "delta",
                                                   "heading_ref": "current", "approach_speed_profile": True}),
                                         ("IDWA", {"rot_weight_mode": "alignment", "norm": "minmax"}),
-                                        ("IDWA", {"dist_cap": 0.5, "approach_speed_profile": True})])
+                                        ("IDWA", {"dist_cap": 0.5, "approach_speed_profile": True}),
+                                        ("IDWA", {"brake_share": 0.0}), ("DWA", {"brake_share": 0.4, "T_p": 1.0})])
 @given(data=st.data())
 @SETTINGS
 def test_matches_independent_reference(name, extra, data):
@@ -153,7 +166,7 @@ def test_matches_independent_reference(name, extra, data):
     cand = res.candidates
     np.testing.assert_allclose(cand.v, vs)
     np.testing.assert_allclose(cand.w, ws)
-    d_brake = vs ** 2 / (2 * LIM.a_max)
+    d_brake = braking_clearance(vs, LIM, cfg)
     clear_of_boundary = np.abs(clearance - np.maximum(d_brake, 0)) > 1e-9
     np.testing.assert_array_equal(cand.admissible[clear_of_boundary], adm[clear_of_boundary])
     # a clearance exactly on the bound (e.g. 0 at rest touching an obstacle) may round either way
@@ -326,6 +339,31 @@ def test_braking_fallback_when_nothing_is_admissible():
     assert res.v == 0.0
 
 
+def test_brake_share_lets_a_uav_fly_beside_a_wall():
+    """1 m beside a wall, parallel to it, at 0.8 m/s: the clearance form (share 1) needs 1.6 m of clearance to
+    keep that speed and brakes; Fox's free-arc form (share 0) keeps it, since nothing lies on the path; head-on
+    both brake, and so does Fox's form for a wall beyond the horizon but within the stopping distance past it."""
+    wall = np.array([[x, 1.0 + 0.1 + LIM.r_uav, 3.0] for x in np.arange(-3.0, 6.0, 0.1)])
+    state = state_row(v=0.8)
+    goal = [9.0, 0.0, 3.0]
+    spec = dwa_plan(state, LIM, DWAConfig(), goal, wall, 0.1)
+    fox = dwa_plan(state, LIM, DWAConfig(brake_share=0.0), goal, wall, 0.1)
+    assert spec.v < 0.8 and fox.v >= 0.8 and fox.admissible
+    assert dwa_plan(state, LIM, DWAConfig(), goal, wall, 0.1, brake_share=0.0).v == fox.v   # the per-call override
+    ahead = np.array([[2.0 + 0.1 + LIM.r_uav, y, 3.0] for y in np.arange(-3.0, 3.0, 0.1)])
+    head_on = dwa_plan(state, LIM, DWAConfig(brake_share=0.0), goal, ahead, 0.1)
+    assert head_on.v < 0.8
+
+    def straight_at_0_8_admissible(wall_x):                 # the sample v = 0.8, w = 0 toward a wall wall_x m ahead
+        wall = np.array([[wall_x + 0.1 + LIM.r_uav, y, 3.0] for y in np.arange(-3.0, 3.0, 0.1)])
+        c = dwa_plan(state, LIM, DWAConfig(brake_share=0.0), goal, wall, 0.1).candidates
+        return bool(c.admissible[(np.abs(c.v - 0.8) < 1e-9) & (c.w == 0.0)][0])
+    # horizon 2.4 m + the stopping arc of the window's top speed 0.82 m/s (2.1 s): 4.12 m
+    assert not straight_at_0_8_admissible(4.0) and straight_at_0_8_admissible(4.3)
+    with pytest.raises(ValueError, match="brake_share"):
+        dwa_plan(state, LIM, DWAConfig(), goal, wall, 0.1, brake_share=1.5)
+
+
 def test_e8_far_from_goal_equals_standard_heading():
     obstacles = np.array([[2.0, 0.5, 3.0], [3.0, -1.0, 3.0]])
     state = state_row(v=0.5, psi=0.2)
@@ -449,6 +487,7 @@ def test_ablation_names_set_the_flags():
     ("alpha0", -0.1), ("kappa", 1.0), ("R_sw", 0.0), ("heading_ref", "goal"), ("approach_speed_profile", True),
     ("astar_weight_mode", "global"), ("eps0", -1.0), ("d_in", 2.0), ("d_out", 0.2),
     ("rotation_mode", "squared"), ("rot_weight_mode", "none"), ("R_uu", 0.0), ("dist_cap", 0.0), ("dist_cap", 3.0),
+    ("brake_share", -0.1), ("brake_share", 1.5),
 ])
 def test_bad_config_names_the_field(field, value):
     with pytest.raises(ValueError, match=field):

@@ -10,9 +10,10 @@ import pytest
 from baselines.dwa import dwa_plan
 from baselines.fusion import ExpertConfig, FusionExpert
 from baselines.fusion.controller import _UAVMemory
-from baselines.fusion.rules import (RULES, Command, Cycle, braking_fallback, dock_approach, dock_turn, drift_guard,
-                                    drift_persistence, emergency_escape, fence_clearance, gust_speed, gust_standoff,
-                                    reverse_turn, station_keep, vertical_separation, wind_estimate, wind_margin)
+from baselines.fusion.rules import (RULES, Command, Cycle, braking_fallback, braking_share, dock_approach, dock_turn,
+                                    drift_guard, drift_persistence, emergency_escape, fence_clearance, gust_speed,
+                                    gust_standoff, reverse_turn, station_keep, vertical_separation, wind_estimate,
+                                    wind_margin)
 from baselines.vfh3d import VFHPlanner
 from uavform_env import EnvConfig, parallel_env
 
@@ -267,6 +268,16 @@ def test_gust_speed_is_the_rms_drift_of_alternating_gusts():
     assert abs(mem.wind[1]) < 0.05 and gust_speed(mem) == pytest.approx(0.4, rel=0.01)
 
 
+def test_braking_share_rises_with_the_gusts():
+    """Still air: the config's share (the expert's 0, Fox's free-arc form); the share grows with the RMS drift and is
+    1 (the clearance form of spec (b6)) from ``gust_braking`` m/s on; a config share above the gust share is kept."""
+    assert CFG.dwa.brake_share == 0.0 and braking_share(_UAVMemory(), CFG) == 0.0
+    half = _UAVMemory(drift_ms=(0.5 * CFG.gust_braking) ** 2)
+    assert braking_share(half, CFG) == pytest.approx(0.5)
+    assert braking_share(_UAVMemory(drift_ms=(2 * CFG.gust_braking) ** 2), CFG) == 1.0
+    assert braking_share(half, ExpertConfig.planar("DWA")) == 1.0          # the planar baselines keep spec (b6)
+
+
 def _flight(policy, steps=25):
     penv = parallel_env(scenario="forest", n_uavs=3, formation="triangle", max_cycles=steps)
     obs, _ = penv.reset(seed=4)
@@ -494,7 +505,8 @@ def test_wind_margin_share_stops_dwa_closing_on_a_wall_inside_the_margin():
     def plan(share):
         cfg = ExpertConfig(wind_margin=3.0, wind_margin_share=share, gust_allowance=0.0)
         radii = np.full(len(wall), 0.1 + wind_margin(gusty, cfg, clearance, LIM.r_safe))
-        return dwa_plan(state, LIM, cfg.dwa, np.array([10.0, 0.0]), wall, radii, clearance_now=clearance)
+        return dwa_plan(state, LIM, cfg.dwa, np.array([10.0, 0.0]), wall, radii, clearance_now=clearance,
+                        brake_share=braking_share(gusty, cfg))          # as the controller passes it: 1 in gusts
 
     half, most = plan(0.5), plan(0.9)
     assert half.admissible and half.v > 0.0 and half.w == 0.0

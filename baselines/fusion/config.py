@@ -210,6 +210,20 @@ class ExpertConfig(Config):
                        breeze's RMS drift (~0.16 m/s) added 0.16 m to every voxel and a 0.48 m hover standoff on top
                        of r_safe, and the guard flew a leader turning into a wall's gap off the wall 425 times until
                        time-out (wall-gap v1-dev s200119 breeze); gusty drifts (~0.6 m/s) keep most of theirs [X]
+    gust_braking       DWA's braking test (``DWAConfig.brake_share``) in the wind: the share is ``dwa.brake_share``
+                       (the expert's 0: Fox's free-arc form, each rollout run on for its stopping time) raised to the
+                       RMS drift (``rules.gust_speed``) over ``gust_braking`` m/s, at most 1 (the clearance form of
+                       spec (b6)), by ``rules.braking_share``. Why: with the clearance form a UAV 1 m beside a wall
+                       flies at most sqrt(2 a_max x 1 m) = 0.63 m/s (a dog-leg leader along a wall: 0.64 m/s at 1.0 m,
+                       0.54 m/s at 0.76 m). Gusts make the rollouts a poor forecast, and there the clearance form's
+                       speed-dependent standoff stays: with share 0 in every wind gusty v1-dev collisions rose from 8
+                       to 15 of 77 (followers at 0.3-0.4 m/s carried into a voxel with every sample admissible), with
+                       ``gust_braking`` 0.5 to 11; at 0.1 a breeze's drift (~0.16 m/s) already restores the spec's form.
+                       Session 16, v1-dev, one flight per episode (``benchmarks/gust_seeds.py``): calm 60 -> 61 of 77,
+                       noisy 122 -> 128 of 154 (2 noise seeds), breeze 57 -> 59, gusty 17 -> 17, collisions 0, 0, 0, 8
+                       -> 8. Fox's form without the stopping tail (the horizon alone) gave calm 63 but a noisy follower
+                       accelerating to 0.98 m/s toward a tree seen 2.2 m ahead ran out of admissible samples and hit it
+                       (random-3d s200217) [X]
     guard_hover_speed  a UAV slower than this, within ``guard_gust_time`` x the RMS drift of an obstacle point beside
                        it, flies away from it (``rules.drift_guard``) even when DWA has admissible samples: DWA
                        chose to turn in place at v = 0, and the gusts carried the stopped UAV into the obstacle
@@ -236,7 +250,8 @@ class ExpertConfig(Config):
 
     dwa: DWAConfig = field(default_factory=lambda: DWAConfig.ablation("IDWA", approach_speed_profile=True,
                                                                                       r_goal=0.1, dist_cap=0.5,
-                                                                                      rotation_mode="delta"))
+                                                                                      rotation_mode="delta",
+                                                                                      brake_share=0.0))
     vfh: VFHConfig = field(default_factory=VFHConfig)
     astar: AStarConfig = field(default_factory=lambda: AStarConfig(prune=True, heading_target="visible_goal"))
     use_vfh: bool = True
@@ -317,6 +332,8 @@ class ExpertConfig(Config):
     way_misses: int = 4
     # -- breeze (issue 13, session 9 "s9breeze"): gust margins count only what r_safe does not already cover
     gust_allowance: float = 1.0
+    # -- speed beside walls (issue 13, session 16): Fox's free-arc braking in still air
+    gust_braking: float = 0.1
     # -- the leader's pace at bends (issue 13, session 9 "s9dogleg")
     leader_pace: str = "trail"
     # -- gusts (issue 13, session 9 "s9gusty")
@@ -351,7 +368,7 @@ class ExpertConfig(Config):
                                             "guard_hover_speed", "path_margin",
                                             "margin_detour", "repark_time", "repark_radius",
                                             "gust_allowance", "route_keep_margin")},
-        **{name: in_range(0.0, lo_open=True) for name in ("wind_tau", "gust_tau")},
+        **{name: in_range(0.0, lo_open=True) for name in ("wind_tau", "gust_tau", "gust_braking")},
         "leader_speed_cap": in_range(0.0, 1.0, lo_open=True),
         "yield_factor": in_range(0.0, 1.0),
         "wind_margin_share": in_range(0.0, 1.0),

@@ -33,8 +33,8 @@ from .config import ExpertConfig
 from .kernels import (closest_approach_of, columns_without_gap, gap_altitude_kernel, in_sphere, live_within,
                       mark_cells, open_level_way, predicted_movers, segment_clear, slot_errors, surface_clearance,
                       trail_lags)
-from .rules import (RULES, Command, Cycle, bearing_error, clamp, drift_persistence, fence_clearance, gust_speed,
-                    leader_parked, station_keep, wind_estimate, wind_margin)
+from .rules import (RULES, Command, Cycle, bearing_error, braking_share, clamp, drift_persistence, fence_clearance,
+                    gust_speed, leader_parked, station_keep, wind_estimate, wind_margin)
 
 
 @dataclass
@@ -349,12 +349,13 @@ class FusionExpert(OnboardPolicy):
             (local.movers_pos[alive], local.movers_vel[alive])
         still = mem.wind[0] == 0.0 and mem.wind[1] == 0.0
         drift = mem.wind * drift_persistence(lim, dwa_cfg.T_p) if cfg.wind_drift and not still else None
+        share = braking_share(mem, cfg)
 
         def plan(vz):
             return self.dwa(s, lim, dwa_cfg, vertical.heading_goal, obstacles, radii, vz_cmd=vz,
                             lookahead=target.lookahead, clearance_now=clearance_now, movers_pos=alive_pos,
                             movers_vel=alive_vel, v_ref=target.v_ref, v_cap=vertical.v_cap,
-                            prev_alignment=mem.prev_alignment, drift=drift)
+                            prev_alignment=mem.prev_alignment, drift=drift, brake_share=share)
 
         vz = vertical.vz
         res = plan(vz)

@@ -295,6 +295,14 @@ def gust_standoff(mem, cfg, time: float, r_safe: float) -> float:
     return max(0.0, time * gust_speed(mem) - cfg.gust_allowance * r_safe)
 
 
+def braking_share(mem, cfg) -> float:
+    """[X] ``gust_braking``: this cycle's share of DWA's braking test (``DWAConfig.brake_share``): the config's,
+    raised with the RMS drift (``gust_speed``) to 1 at ``gust_braking`` m/s. In still air only obstacles on a
+    rollout's path slow the UAV (Fox's free-arc form); in gusts the clearance form's speed-dependent standoff
+    leaves room to turn away from a gust that the rollouts did not foresee."""
+    return max(cfg.dwa.brake_share, min(1.0, gust_speed(mem) / cfg.gust_braking))
+
+
 def wind_margin(mem, cfg, clearance_now: float, r_safe: float) -> float:
     """[X] ``wind_margin``, ``wind_margin_share``: how far DWA's obstacle points grow in gusts (m): ``wind_margin``
     s x the RMS drift less what r_safe covers (``gust_standoff``), at most ``wind_margin_share`` of the UAV's
