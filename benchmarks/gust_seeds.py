@@ -1,14 +1,14 @@
 """A fair judge of a wind rule: each windy episode of a suite flown under several wind seeds (issue 13, gusts).
 
-    python benchmarks/gust_seeds.py --suite v1-dev --wind gusty --winds 4 [--set wind_margin=2.0] [--workers 2]
-                                    [--only forest@2 corridor@2] [--out flights.jsonl]
+    python benchmarks/gust_seeds.py --suite v1-dev --wind gusty --winds 4 [--set wind_margin=2.0 dwa.brake_share=1]
+                                    [--workers 2] [--only forest@2 corridor@2] [--out flights.jsonl]
 
 A suite fixes each episode's obstacle layout and its wind by one seed, so a slice of single flights swings by a
 few crashes from any change of the flight (session 8: +-2 crashes of 28). Here the layout stays the episode's
 (``FormationEnv(layout_seed=episode.seed)``) and the reset seed, which draws the gust field, runs over ``--winds``
 seeds: wind 0 is the episode's own seed (its flight is the suite's, bit for bit), wind k > 0 the seed
 ``SeedSequence([episode.seed, k])`` draws. The policy is the expert (``FusionExpert``) with the ``--set`` overrides of
-its ``ExpertConfig`` fields. Printed: flights, flights with a collision, successes, and per episode the outcomes of
+its ``ExpertConfig`` fields (``part.name`` for a field of its ``dwa``, ``vfh`` or ``astar`` config). Printed: flights, flights with a collision, successes, and per episode the outcomes of
 its winds (s success, t time-out, c crash); ``--out`` keeps one JSON line per flight.
 """
 
@@ -18,7 +18,7 @@ import argparse
 import json
 import sys
 import time
-from dataclasses import fields
+from dataclasses import fields, replace
 
 import numpy as np
 
@@ -51,15 +51,27 @@ def fly(episode: dict, k: int, overrides: dict) -> dict:
 
 
 def parse_overrides(items: list[str]) -> dict:
-    """``name=value`` pairs of ExpertConfig fields, each value converted to the type of the field's default."""
-    defaults = {f.name: getattr(ExpertConfig(), f.name) for f in fields(ExpertConfig)}
-    out = {}
+    """``name=value`` pairs of ExpertConfig fields, or ``part.name=value`` of a field of its ``dwa``, ``vfh`` or
+    ``astar`` config, each value converted to the type of the field's default."""
+    base = ExpertConfig()
+    out, parts = {}, {}
     for item in items:
         name, sep, text = item.partition("=")
-        if not sep or name not in defaults or not isinstance(defaults[name], (bool, int, float)):
-            raise ValueError(f"--set {item!r}: expected name=value with name a number or flag field of ExpertConfig")
-        kind = type(defaults[name])
-        out[name] = (text.lower() in ("1", "true", "yes")) if kind is bool else kind(text)
+        part, dot, field = name.rpartition(".")
+        owner = base if not dot else getattr(base, part) if part in ("dwa", "vfh", "astar") else None
+        names = {f.name for f in fields(owner)} if owner is not None else set()
+        default = getattr(owner, field) if field in names else None
+        if not sep or not isinstance(default, (bool, int, float)):
+            raise ValueError(f"--set {item!r}: expected name=value with name a number or flag field of ExpertConfig, "
+                             "or of its dwa, vfh or astar config as part.name")
+        kind = type(default)
+        try:
+            value = (text.lower() in ("1", "true", "yes")) if kind is bool else kind(text)
+        except ValueError:
+            raise ValueError(f"--set {item!r}: expected a {kind.__name__} value for {name}") from None
+        (parts.setdefault(part, {}) if dot else out)[field] = value
+    for part, values in parts.items():
+        out[part] = replace(getattr(base, part), **values)
     ExpertConfig(**out)                                               # bounds checked before any flight
     return out
 
@@ -93,7 +105,7 @@ def main(argv=None) -> int:
             f.writelines(json.dumps(r) + "\n" for r in records)
     crashed = [r for r in records if r["outcome"].startswith("crash")]
     success = [r for r in records if r["outcome"] == "success"]
-    print(f"overrides {overrides or 'none'}; {len(episodes)} episodes x {args.winds} winds = {len(records)} flights: "
+    print(f"overrides {' '.join(args.set) or 'none'}; {len(episodes)} episodes x {args.winds} winds = {len(records)} flights: "
           f"{len(crashed)} with a collision, {len(success)} successes")
     for e in episodes:
         marks = "".join(MARKS.get(r["outcome"], "c") for r in records if r["episode"] == e.key)
