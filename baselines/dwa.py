@@ -729,9 +729,7 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, obstacles, radii, movers_pos, mo
     far = (dt * n_roll * (math.sqrt(v_hi * v_hi + vz * vz) + math.hypot(drift_x, drift_y))
            + max(p.D_cap, v_hi * v_hi / (2.0 * p.a_max)) + p.r_uav)
     obstacles, rads, lows = _nearby(obstacles, radii, x0, y0, z0, far, p.r_uav)
-    d_brake = vs * vs / (2.0 * p.a_max)
-    if p.brake_share < 1.0:                             # the stopping arcs (the tails) keep the rest
-        d_brake = p.brake_share * d_brake
+    d_brake = p.brake_share * (vs * vs / (2.0 * p.a_max))   # share 1: exactly v^2 / (2 a_max)
     caps = np.maximum(p.D_cap, d_brake)
     stop_below = np.full(n_samples, -math.inf) if exact_clearance else d_brake
     # every search starts at its cap or an attained value; one candidate list serves all rollouts

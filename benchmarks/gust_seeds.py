@@ -8,8 +8,9 @@ few crashes from any change of the flight (session 8: +-2 crashes of 28). Here t
 (``FormationEnv(layout_seed=episode.seed)``) and the reset seed, which draws the gust field, runs over ``--winds``
 seeds: wind 0 is the episode's own seed (its flight is the suite's, bit for bit), wind k > 0 the seed
 ``SeedSequence([episode.seed, k])`` draws. The policy is the expert (``FusionExpert``) with the ``--set`` overrides of
-its ``ExpertConfig`` fields (``part.name`` for a field of its ``dwa``, ``vfh`` or ``astar`` config). Printed: flights, flights with a collision, successes, and per episode the outcomes of
-its winds (s success, t time-out, c crash); ``--out`` keeps one JSON line per flight.
+its ``ExpertConfig`` fields (``part.name`` for a field of its ``dwa``, ``vfh`` or ``astar`` config). Printed: flights,
+flights with a collision, successes, and per episode the outcomes of its winds (s success, t time-out, c crash);
+``--out`` keeps one JSON line per flight.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from uavform_env.evaluation.suites import Episode, load_suite
 from uavform_env.parallel import imap_unordered
 
 MARKS = {"success": "s", "timeout": "t"}
+PARTS = ("dwa", "vfh", "astar")  # the sub-configs of ExpertConfig that --set part.name reaches
 
 
 def wind_seed(episode_seed: int, k: int) -> int:
@@ -58,9 +60,8 @@ def parse_overrides(items: list[str]) -> dict:
     for item in items:
         name, sep, text = item.partition("=")
         part, dot, field = name.rpartition(".")
-        owner = base if not dot else getattr(base, part) if part in ("dwa", "vfh", "astar") else None
-        names = {f.name for f in fields(owner)} if owner is not None else set()
-        default = getattr(owner, field) if field in names else None
+        owner = (getattr(base, part) if part in PARTS else None) if dot else base
+        default = getattr(owner, field) if owner is not None and field in {f.name for f in fields(owner)} else None
         if not sep or not isinstance(default, (bool, int, float)):
             raise ValueError(f"--set {item!r}: expected name=value with name a number or flag field of ExpertConfig, "
                              "or of its dwa, vfh or astar config as part.name")
@@ -105,8 +106,8 @@ def main(argv=None) -> int:
             f.writelines(json.dumps(r) + "\n" for r in records)
     crashed = [r for r in records if r["outcome"].startswith("crash")]
     success = [r for r in records if r["outcome"] == "success"]
-    print(f"overrides {' '.join(args.set) or 'none'}; {len(episodes)} episodes x {args.winds} winds = {len(records)} flights: "
-          f"{len(crashed)} with a collision, {len(success)} successes")
+    print(f"overrides {' '.join(args.set) or 'none'}; {len(episodes)} episodes x {args.winds} winds = "
+          f"{len(records)} flights: {len(crashed)} with a collision, {len(success)} successes")
     for e in episodes:
         marks = "".join(MARKS.get(r["outcome"], "c") for r in records if r["episode"] == e.key)
         print(f"  {marks}  {e.key}")

@@ -214,16 +214,9 @@ class ExpertConfig(Config):
                        (the expert's 0: Fox's free-arc form, each rollout run on for its stopping time) raised to the
                        RMS drift (``rules.gust_speed``) over ``gust_braking`` m/s, at most 1 (the clearance form of
                        spec (b6)), by ``rules.braking_share``. Why: with the clearance form a UAV 1 m beside a wall
-                       flies at most sqrt(2 a_max x 1 m) = 0.63 m/s (a dog-leg leader along a wall: 0.64 m/s at 1.0 m,
-                       0.54 m/s at 0.76 m). Gusts make the rollouts a poor forecast, and there the clearance form's
-                       speed-dependent standoff stays: with share 0 in every wind gusty v1-dev collisions rose from 8
-                       to 15 of 77 (followers at 0.3-0.4 m/s carried into a voxel with every sample admissible), with
-                       ``gust_braking`` 0.5 to 11; at 0.1 a breeze's drift (~0.16 m/s) already restores the spec's form.
-                       Session 16, v1-dev, one flight per episode (``benchmarks/gust_seeds.py``): calm 60 -> 61 of 77,
-                       noisy 122 -> 128 of 154 (2 noise seeds), breeze 57 -> 59, gusty 17 -> 17, collisions 0, 0, 0, 8
-                       -> 8. Fox's form without the stopping tail (the horizon alone) gave calm 63 but a noisy follower
-                       accelerating to 0.98 m/s toward a tree seen 2.2 m ahead ran out of admissible samples and hit it
-                       (random-3d s200217) [X]
+                       flies at most sqrt(2 a_max x 1 m) = 0.63 m/s; gusts make the rollouts a poor forecast, and there
+                       the clearance form's speed-dependent standoff stays. Figures and the variants tried:
+                       docs/deviations.md (``dwa.brake_share``, ``gust_braking``) [X]
     guard_hover_speed  a UAV slower than this, within ``guard_gust_time`` x the RMS drift of an obstacle point beside
                        it, flies away from it (``rules.drift_guard``) even when DWA has admissible samples: DWA
                        chose to turn in place at v = 0, and the gusts carried the stopped UAV into the obstacle
