@@ -5,7 +5,11 @@ episode ends within a few hundred steps.
 """
 
 import dataclasses
+import hashlib
 import math
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -16,7 +20,7 @@ from baselines.expert import WEIGHT_NAMES, ExpertConfig, FusionExpert, StandardD
 from baselines.fusion.kernels import columns_without_gap, open_level_way, segment_clear
 from baselines.fusion.rules import away_vertically
 from uavform_env import EnvConfig, parallel_env
-from uavform_env.config import UAVLimits
+from uavform_env.config import DisturbanceConfig, UAVLimits
 from uavform_env.occupancy import OccupancyMap
 from uavform_env.scenarios import Mission, Scenario
 from uavform_env.world import Box
@@ -117,6 +121,29 @@ def test_default_weights_are_bit_identical_to_no_weights():
             obs, *_ = penv.step(acts)
         runs.append(trace)
     assert len(runs[0]) == 80 and runs[0] == runs[1]
+
+
+def gusty_noisy_flight_digest(seed: int, steps: int = 40) -> str:
+    """The expert flying forest in gusts with sensor noise and dropped rays: every observation and state, hashed."""
+    weather = DisturbanceConfig(wind_std=1.0, wind_mean=(0.3, 0.0), range_noise_std=0.05, ray_dropout=0.1)
+    penv = parallel_env(scenario="forest", n_uavs=3, formation="triangle", max_cycles=steps, disturbance=weather)
+    obs, _ = penv.reset(seed=seed)
+    policy = FusionExpert()
+    policy.reset(penv, seed=seed)
+    h = hashlib.sha256()
+    while penv.agents:
+        obs, *_ = penv.step(policy.act(obs, penv))
+        h.update(b"".join(obs[a].tobytes() for a in sorted(obs)) + penv.unwrapped.states.tobytes())
+    return h.hexdigest()
+
+
+def test_gusty_noisy_flight_is_the_same_in_another_process():
+    """Wind, sensor noise and the expert's memory draw nothing from the process (hash seed, import order)."""
+    code = ("import sys; sys.path.insert(0, '.'); from tests.test_expert import gusty_noisy_flight_digest;"
+            "print(gusty_noisy_flight_digest(11))")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         env={**os.environ, "PYTHONHASHSEED": "12345"})
+    assert run.stdout.split()[-1] == gusty_noisy_flight_digest(11) != gusty_noisy_flight_digest(12)
 
 
 def test_weights_change_the_actions():
