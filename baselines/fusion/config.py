@@ -143,6 +143,11 @@ class ExpertConfig(Config):
                        > 0) the holding UAV rests in any wind: the gusts carry an autopilot-held UAV
                        about that far and back, and a parked leader that flew back after each excursion turned
                        its nose, and its followers' slots, round the goal until the time-out (session 14) [X]
+    rest_gust_time     a holding UAV rests only while its horizontal clearance to its own map near its altitude
+                       (and to the world's bounds) is at least r_safe plus this times the RMS drift, less what
+                       r_safe covers (``rules.gust_standoff``); closer, it flies back to its hold point. r_safe
+                       in still air: a parked leader resting 1.9 m from its goal was carried into a tree
+                       0.5-1.6 m from it (v1-dev forest s200074, s200076 gusty, session 18) [X]
     hold_drift_time, hold_search  a UAV with no way to its goal holds the nearest point within ``hold_search`` m
                        (reached along a clear straight segment) whose horizontal clearance to its own map near the
                        flight altitude and to the world's bounds is at least r_safe plus the drift the estimated wind
@@ -334,6 +339,8 @@ class ExpertConfig(Config):
     fence_margin: bool = True
     # -- route choice in an unknown maze (issue 13, session 10 "s10maze")
     route_keep_margin: float = 1.0
+    # -- a holding UAV rests only where it is clear (issue 13, session 18: parked leaders carried into trees)
+    rest_gust_time: float = 1.5
 
     BOUNDS: ClassVar[dict] = {
         "dwa": instance_of(DWAConfig), "vfh": instance_of(VFHConfig), "astar": instance_of(AStarConfig),
@@ -360,7 +367,7 @@ class ExpertConfig(Config):
                                             "approach_radius", "guard_clearance", "guard_speed", "guard_gust_time",
                                             "guard_hover_speed", "path_margin",
                                             "margin_detour", "repark_time", "repark_radius",
-                                            "gust_allowance", "route_keep_margin")},
+                                            "gust_allowance", "route_keep_margin", "rest_gust_time")},
         **{name: in_range(0.0, lo_open=True) for name in ("wind_tau", "gust_tau", "gust_braking")},
         "leader_speed_cap": in_range(0.0, 1.0, lo_open=True),
         "yield_factor": in_range(0.0, 1.0),

@@ -34,7 +34,7 @@ from .kernels import (closest_approach_of, columns_without_gap, gap_altitude_ker
                       mark_cells, open_level_way, predicted_movers, segment_clear, slot_errors, surface_clearance,
                       trail_lags)
 from .rules import (RULES, Command, Cycle, bearing_error, braking_share, clamp, drift_persistence, fence_clearance,
-                    gust_speed, leader_parked, station_keep, wind_estimate, wind_margin)
+                    gust_speed, leader_parked, rest_standoff, station_keep, wind_estimate, wind_margin)
 
 
 @dataclass
@@ -161,7 +161,7 @@ class FusionExpert(OnboardPolicy):
             margin = self._hold_margin(view, mem, cfg)
             if mem.hold_xy is None or margin > mem.hold_margin + view.limits.r_safe:   # first, or the wind rose
                 mem.hold_xy, mem.hold_margin = self._hold_point(view, cfg, margin), margin
-            cmd = station_keep(view, mem, cfg, mem.hold_xy, float(view.state[PSI]))
+            cmd = station_keep(view, mem, cfg, mem.hold_xy, float(view.state[PSI]), self._rest_clearance(view, mem, cfg))
             return np.array([cmd.v, cmd.w, self._hold_altitude(view, cfg, z_slot)])
         mem.hold_xy = None
         vertical = self._vertical_decision(view, mem, cfg, target, local, z_slot)
@@ -194,12 +194,7 @@ class FusionExpert(OnboardPolicy):
         has risen by r_safe / ``hold_drift_time`` since."""
         lim = view.limits
         pos = view.state[:3]
-        reach = cfg.hold_search + margin + lim.r_uav
-        band = lim.r_uav + lim.r_safe + view.occupancy.resolution
-        voxels, _ = view.occupancy.occupied_in_sphere(pos, reach + band)
-        near = project_to_altitude(voxels, pos[2], band)
-        points = np.concatenate([near, geofence_points(pos, reach, view.bounds_lo, view.bounds_hi,
-                                                       cfg.geofence_spacing)])
+        points = _hold_obstacles(view, cfg, cfg.hold_search + margin + lim.r_uav)
         if len(points) == 0:
             return pos[:2].copy()
         step = cfg.geofence_spacing
@@ -215,6 +210,17 @@ class FusionExpert(OnboardPolicy):
             if k == 0 or segment_clear(points, pos, cand[k], lim.r_uav + lim.r_safe):
                 return cand[k, :2].copy()
         return pos[:2].copy()
+
+    @staticmethod
+    def _rest_clearance(view, mem: _UAVMemory, cfg: ExpertConfig) -> float:
+        """A holding UAV's horizontal clearance (``rules.station_keep``) to ``_hold_obstacles``, exact up to the
+        standoff a rest needs (``rules.rest_standoff``), inf beyond it."""
+        lim = view.limits
+        points = _hold_obstacles(view, cfg, lim.r_uav + rest_standoff(mem, cfg, lim.r_safe))
+        if len(points) == 0:
+            return math.inf
+        d = points[:, :2] - view.state[:2]
+        return float(np.sqrt((d * d).sum(axis=1)).min()) - lim.r_uav
 
     @staticmethod
     def _hold_altitude(view, cfg: ExpertConfig, z_slot: float) -> float:
@@ -238,7 +244,7 @@ class FusionExpert(OnboardPolicy):
         if cfg.park_turn and cfg.repark_time > 0.0 and mem.park_psi is not None:
             _mark_unreached_slots(view, mem, cfg, view.step * view.limits.dt)
         heading = _park_heading(view, mem, cfg) if cfg.park_turn else float(view.state[PSI])
-        cmd = station_keep(view, mem, cfg, view.goal[:2], heading)
+        cmd = station_keep(view, mem, cfg, view.goal[:2], heading, self._rest_clearance(view, mem, cfg))
         return np.array([cmd.v, cmd.w, self._hold_altitude(view, cfg, z_slot)])
 
     def _local(self, view, cfg: ExpertConfig) -> _Local:
@@ -692,6 +698,17 @@ def _leader_at_goal(view, cfg: ExpertConfig) -> bool:
     """Whether the leader's broadcast shows it parked (``rules.leader_parked``) within ``arrive_radius`` of the goal."""
     lead = view.leader_state
     return leader_parked(view, cfg) and math.hypot(view.goal[0] - lead[0], view.goal[1] - lead[1]) < cfg.arrive_radius
+
+
+def _hold_obstacles(view, cfg: ExpertConfig, reach: float) -> np.ndarray:
+    """What a holding UAV keeps clear of, within ``reach`` horizontally: its own map's voxels near its altitude
+    (within r_uav + r_safe + one voxel), projected onto it, and the world's bounds (``geofence_spacing`` apart)."""
+    lim = view.limits
+    pos = view.state[:3]
+    band = lim.r_uav + lim.r_safe + view.occupancy.resolution
+    voxels, _ = view.occupancy.occupied_in_sphere(pos, reach + band)
+    near = project_to_altitude(voxels, pos[2], band)
+    return np.concatenate([near, geofence_points(pos, reach, view.bounds_lo, view.bounds_hi, cfg.geofence_spacing)])
 
 
 def _goal_in_band(view) -> bool:

@@ -212,7 +212,7 @@ RULES = (braking_fallback, dock_turn, dock_approach, reverse_turn, gap_turn, dri
 
 
 # ---------------------------------------------------------------------- the hold stage (no DWA)
-def station_keep(view, mem, cfg, hold_xy, heading: float) -> Command:
+def station_keep(view, mem, cfg, hold_xy, heading: float, clearance: float) -> Command:
     """[X] ``hold_radius``, ``k_hold``, ``vane_wind``: a UAV holding a point (the arrived leader at its goal; a UAV
     with no way to its goal, where it stopped) keeps it against the wind. The air velocity it needs is
     u = k_hold (p_hold - p) - w (return to the point and cancel the wind ``mem.wind`` its own drift estimates);
@@ -225,7 +225,10 @@ def station_keep(view, mem, cfg, hold_xy, heading: float) -> Command:
     ``hold_gust_time`` x the RMS drift and the still-air condition goes, on an airframe that leans into the wind
     (with the unopposed model a resting UAV drifts with the whole wind): an autopilot-held UAV is carried by the
     gusts' changes only (``UAVLimits.wind_authority``: tau x the change of its lean), about that far and back, so
-    chasing each excursion only turns the nose round. The returned ``vz`` is 0 (the caller holds altitude)."""
+    chasing each excursion only turns the nose round. [X] ``rest_gust_time``: it rests only while its ``clearance``
+    (horizontal, to its own map near its altitude and the world's bounds) is at least r_safe plus the gust standoff
+    of that time (``gust_standoff``); closer, it flies back to the point, which it reached clear. The returned
+    ``vz`` is 0 (the caller holds altitude)."""
     s, lim = view.state, view.limits
     to_hold = np.asarray(hold_xy, dtype=np.float64) - s[:2]
     u = cfg.k_hold * to_hold - mem.wind * drift_persistence(lim, 1.0 / cfg.k_hold if cfg.k_hold > 0.0 else math.inf)
@@ -233,11 +236,17 @@ def station_keep(view, mem, cfg, hold_xy, heading: float) -> Command:
     gusts = gust_speed(mem)
     slack = cfg.hold_gust_time * gusts if gusts > cfg.vane_wind and lim.wind_authority > 0.0 else 0.0
     radius = (cfg.hold_release if mem.held else cfg.hold_radius) + slack
-    mem.held = dist <= radius and (mem.held or slack > 0.0 or speed <= cfg.vane_wind)
+    mem.held = clearance >= rest_standoff(mem, cfg, lim.r_safe) and dist <= radius and (mem.held or slack > 0.0 or speed <= cfg.vane_wind)
     if mem.held:
         return Command(0.0, clamp(wrap(heading - s[PSI]), -lim.w_max, lim.w_max), 0.0)
     err = bearing_error(s, u)
     return Command(clamp(speed * math.cos(err), 0.0, lim.v_max), clamp(err, -lim.w_max, lim.w_max), 0.0)
+
+
+def rest_standoff(mem, cfg, r_safe: float) -> float:
+    """[X] ``rest_gust_time``: the horizontal clearance (m) a holding UAV needs to rest (``station_keep``): r_safe plus
+    the gust standoff of ``rest_gust_time`` (``gust_standoff``); r_safe in still air."""
+    return r_safe + gust_standoff(mem, cfg, cfg.rest_gust_time, r_safe)
 
 
 def home_in(view, mem, cfg, point_xy) -> Command:
