@@ -12,8 +12,8 @@ from baselines.fusion import ExpertConfig, FusionExpert
 from baselines.fusion.controller import _UAVMemory
 from baselines.fusion.rules import (RULES, Command, Cycle, braking_fallback, braking_share, dock_approach, dock_turn,
                                     drift_guard, drift_persistence, emergency_escape, fence_clearance, gust_speed,
-                                    gust_standoff, reverse_turn, station_keep, vertical_separation, wind_estimate,
-                                    wind_margin)
+                                    gust_standoff, rest_standoff, reverse_turn, station_keep, vertical_separation,
+                                    wind_estimate, wind_margin)
 from baselines.vfh3d import VFHPlanner
 from uavform_env import EnvConfig, parallel_env
 
@@ -166,52 +166,69 @@ UNOPPOSED = LIM.replace(wind_authority=0.0)     # the airframe the wind carries 
 
 def test_station_keep_flies_back_and_against_the_wind_and_rests_in_still_air():
     mem = _UAVMemory()
-    held = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([0.1, 0.0]), 0.5)   # at the point, still air
+    # at the point, still air
+    held = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([0.1, 0.0]), 0.5, math.inf)
     assert (held.v, held.w) == (0.0, W_MAX) and mem.held                                # stops, turns to heading
     mem.held = False
-    behind = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([-1.0, 0.0]), 0.0)   # 1 m past: turn, no speed
+    # 1 m past: turn, no speed
+    behind = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([-1.0, 0.0]), 0.0, math.inf)
     assert (behind.v, behind.w) == (0.0, W_MAX)
     mem.wind = np.array([-0.3, 0.0])                                      # a 0.3 m/s headwind
-    ahead = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([1.0, 0.0]), 0.0)
+    ahead = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([1.0, 0.0]), 0.0, math.inf)
     assert ahead.v == pytest.approx(CFG.k_hold * 1.0 + 0.3) and ahead.w == 0.0
-    on_point = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([0.0, 0.0]), 0.0)   # on the point: fly
+    on_point = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([0.0, 0.0]), 0.0, math.inf)   # on the point: fly
     assert on_point.v == pytest.approx(0.3) and on_point.w == 0.0                           # against the wind
     mem.wind = np.array([0.0, 0.3])                                       # crosswind from the right: nose into it
-    cross = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([0.0, 0.0]), 0.0)
+    cross = station_keep(view(limits=UNOPPOSED), mem, CFG, np.array([0.0, 0.0]), 0.0, math.inf)
     assert cross.v == pytest.approx(0.0, abs=1e-12) and cross.w == -W_MAX
 
 
 def test_station_keep_counters_only_the_drift_the_autopilot_leaves_and_holds_until_released():
     mem = _UAVMemory(wind=np.array([-0.3, 0.0]))                          # a 0.3 m/s head drift, default airframe
-    ahead = station_keep(view(), mem, CFG, np.array([1.0, 0.0]), 0.0)
+    ahead = station_keep(view(), mem, CFG, np.array([1.0, 0.0]), 0.0, math.inf)
     share = drift_persistence(LIM, 1.0 / CFG.k_hold)                       # 0.5 / 2 (1 - e^-4) = 0.2454
     assert share == pytest.approx(0.25 * (1.0 - math.exp(-4.0)))
     assert ahead.v == pytest.approx(CFG.k_hold * 1.0 + 0.3 * share) and not mem.held
     rest = _UAVMemory()
-    assert station_keep(view(), rest, CFG, np.array([0.1, 0.0]), 0.0).v == 0.0 and rest.held
+    assert station_keep(view(), rest, CFG, np.array([0.1, 0.0]), 0.0, math.inf).v == 0.0 and rest.held
     for off in (0.3, CFG.hold_release - 1e-9):                            # carried off, within hold_release: held
-        cmd = station_keep(view(), rest, CFG, np.array([off, 0.0]), 0.0)
+        cmd = station_keep(view(), rest, CFG, np.array([off, 0.0]), 0.0, math.inf)
         assert (cmd.v, cmd.w) == (0.0, 0.0) and rest.held
-    out = station_keep(view(), rest, CFG, np.array([CFG.hold_release + 0.05, 0.0]), 0.0)   # released: flies back
+    # released: flies back
+    out = station_keep(view(), rest, CFG, np.array([CFG.hold_release + 0.05, 0.0]), 0.0, math.inf)
     assert not rest.held and out.v == pytest.approx(CFG.k_hold * (CFG.hold_release + 0.05))
     fresh = _UAVMemory()                                                  # not yet held: 0.3 m is outside hold_radius
-    assert station_keep(view(), fresh, CFG, np.array([0.3, 0.0]), 0.0).v > 0.0 and not fresh.held
+    assert station_keep(view(), fresh, CFG, np.array([0.3, 0.0]), 0.0, math.inf).v > 0.0 and not fresh.held
+
+
+def test_station_keep_rests_only_where_clear_of_the_gust_standoff():
+    gusty = _UAVMemory(drift_ms=0.25)                                     # RMS drift 0.5 m/s
+    need = rest_standoff(gusty, CFG, LIM.r_safe)
+    assert need == pytest.approx(LIM.r_safe + CFG.rest_gust_time * 0.5 - CFG.gust_allowance * LIM.r_safe)
+    assert rest_standoff(_UAVMemory(), CFG, LIM.r_safe) == LIM.r_safe     # still air: r_safe
+    point = np.array([0.5, 0.0])                                          # within the gusts' rest radius
+    cmd = station_keep(view(), gusty, CFG, point, 0.0, need + 0.01)
+    assert gusty.held and cmd.v == 0.0                                    # clear: rests
+    cmd = station_keep(view(), gusty, CFG, point, 0.0, need - 0.01)
+    assert not gusty.held and cmd.v == pytest.approx(CFG.k_hold * 0.5)    # carried near a voxel: flies back
+    cmd = station_keep(view(), gusty, CFG, point, 0.0, need + 0.01)
+    assert gusty.held and cmd.v == 0.0                                    # clear again: rests
 
 
 def test_station_keep_in_gusts_rests_within_the_gust_excursion():
     gusty = _UAVMemory(drift_ms=0.25)                                     # RMS drift 0.5 m/s > vane_wind
     slack = CFG.hold_gust_time * 0.5
     off = CFG.hold_radius + slack - 0.01                                  # still air would fly back from here
-    cmd = station_keep(view(), gusty, CFG, np.array([off, 0.0]), 0.3)
+    cmd = station_keep(view(), gusty, CFG, np.array([off, 0.0]), 0.3, math.inf)
     assert gusty.held and cmd.v == 0.0 and cmd.w == pytest.approx(0.3)    # rests, turns to the park heading only
-    cmd = station_keep(view(), gusty, CFG, np.array([CFG.hold_release + slack - 0.01, 0.0]), 0.0)
+    cmd = station_keep(view(), gusty, CFG, np.array([CFG.hold_release + slack - 0.01, 0.0]), 0.0, math.inf)
     assert gusty.held and cmd.v == 0.0
-    cmd = station_keep(view(), gusty, CFG, np.array([CFG.hold_release + slack + 0.01, 0.0]), 0.0)
+    cmd = station_keep(view(), gusty, CFG, np.array([CFG.hold_release + slack + 0.01, 0.0]), 0.0, math.inf)
     assert not gusty.held and cmd.v > 0.0                                 # carried beyond it: flies back
     breeze = _UAVMemory(drift_ms=0.05 ** 2)                               # RMS drift below vane_wind: still-air radii
-    assert station_keep(view(), breeze, CFG, np.array([off, 0.0]), 0.0).v > 0.0 and not breeze.held
-    assert station_keep(view(), _UAVMemory(drift_ms=0.25), CFG.replace(hold_gust_time=0.0),
-                        np.array([off, 0.0]), 0.0).v > 0.0                # hold_gust_time = 0: the still-air rule
+    assert station_keep(view(), breeze, CFG, np.array([off, 0.0]), 0.0, math.inf).v > 0.0 and not breeze.held
+    assert station_keep(view(), _UAVMemory(drift_ms=0.25), CFG.replace(hold_gust_time=0.0),   # the still-air rule
+                        np.array([off, 0.0]), 0.0, math.inf).v > 0.0
 
 
 def test_drift_persistence_known_answers():

@@ -161,7 +161,8 @@ class FusionExpert(OnboardPolicy):
             margin = self._hold_margin(view, mem, cfg)
             if mem.hold_xy is None or margin > mem.hold_margin + view.limits.r_safe:   # first, or the wind rose
                 mem.hold_xy, mem.hold_margin = self._hold_point(view, cfg, margin), margin
-            cmd = station_keep(view, mem, cfg, mem.hold_xy, float(view.state[PSI]), self._rest_clearance(view, mem, cfg))
+            cmd = station_keep(view, mem, cfg, mem.hold_xy, float(view.state[PSI]),
+                               self._rest_clearance(view, mem, cfg))
             return np.array([cmd.v, cmd.w, self._hold_altitude(view, cfg, z_slot)])
         mem.hold_xy = None
         vertical = self._vertical_decision(view, mem, cfg, target, local, z_slot)

@@ -236,7 +236,8 @@ def station_keep(view, mem, cfg, hold_xy, heading: float, clearance: float) -> C
     gusts = gust_speed(mem)
     slack = cfg.hold_gust_time * gusts if gusts > cfg.vane_wind and lim.wind_authority > 0.0 else 0.0
     radius = (cfg.hold_release if mem.held else cfg.hold_radius) + slack
-    mem.held = clearance >= rest_standoff(mem, cfg, lim.r_safe) and dist <= radius and (mem.held or slack > 0.0 or speed <= cfg.vane_wind)
+    mem.held = clearance >= rest_standoff(mem, cfg, lim.r_safe) and dist <= radius and (
+        mem.held or slack > 0.0 or speed <= cfg.vane_wind)
     if mem.held:
         return Command(0.0, clamp(wrap(heading - s[PSI]), -lim.w_max, lim.w_max), 0.0)
     err = bearing_error(s, u)
