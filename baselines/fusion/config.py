@@ -146,8 +146,7 @@ class ExpertConfig(Config):
     rest_gust_time     a holding UAV rests only while its horizontal clearance to its own map near its altitude
                        (and to the world's bounds) is at least r_safe plus this times the RMS drift, less what
                        r_safe covers (``rules.gust_standoff``); closer, it flies back to its hold point. r_safe
-                       in still air: a parked leader resting 1.9 m from its goal was carried into a tree
-                       0.5-1.6 m from it (v1-dev forest s200074, s200076 gusty, session 18) [X]
+                       in still air. Why and figures: docs/deviations.md (``rest_gust_time``) [X]
     hold_drift_time, hold_search  a UAV with no way to its goal holds the nearest point within ``hold_search`` m
                        (reached along a clear straight segment) whose horizontal clearance to its own map near the
                        flight altitude and to the world's bounds is at least r_safe plus the drift the estimated wind

@@ -218,10 +218,7 @@ class FusionExpert(OnboardPolicy):
         standoff a rest needs (``rules.rest_standoff``), inf beyond it."""
         lim = view.limits
         points = _hold_obstacles(view, cfg, lim.r_uav + rest_standoff(mem, cfg, lim.r_safe))
-        if len(points) == 0:
-            return math.inf
-        d = points[:, :2] - view.state[:2]
-        return float(np.sqrt((d * d).sum(axis=1)).min()) - lim.r_uav
+        return surface_clearance(view.state[:3], points, 0.0, lim.r_uav)   # the points lie at the UAV's altitude
 
     @staticmethod
     def _hold_altitude(view, cfg: ExpertConfig, z_slot: float) -> float:
