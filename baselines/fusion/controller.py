@@ -30,8 +30,8 @@ from ..policy import OnboardPolicy
 from ..vertical import BLOCKED, CLIMB, LEVEL, PlannerMemory
 from ..vfh3d import VFHPlanner
 from .config import ExpertConfig
-from .kernels import (closest_approach_of, columns_without_gap, gap_altitude_kernel, in_sphere, live_within,
-                      mark_cells, open_level_way, predicted_movers, segment_clear, slot_errors, surface_clearance,
+from .kernels import (clear_turn_radius, closest_approach_of, columns_without_gap, gap_altitude_kernel, in_sphere,
+                      live_within, mark_cells, open_level_way, predicted_movers, segment_clear, slot_errors, surface_clearance,
                       trail_lags)
 from .rules import (RULES, Command, Cycle, bearing_error, braking_share, clamp, drift_persistence, fence_clearance,
                     gust_speed, leader_parked, rest_standoff, station_keep, wind_estimate, wind_margin)
@@ -268,7 +268,8 @@ class FusionExpert(OnboardPolicy):
                                                                   lim.r_uav + local.radius)
             goal, lookahead, v_cap, v_ref = self._follower_target(view, mem, cfg, t, slot_hidden, local)
         if cfg.pursuit_speed_cap:
-            v_cap = _pursuit_cap(s, lookahead, lim.w_max, lim.v_max if v_cap is None else v_cap)
+            clear = (local.obstacles, lim.r_uav + lim.r_safe + local.radius) if cfg.pursuit_clear else None
+            v_cap = _pursuit_cap(s, lookahead, lim, lim.v_max if v_cap is None else v_cap, clear)
         v_cap = self._yield(view, local.movers_pos, local.movers_vel, cfg, v_cap)
         return _Target(goal, lookahead, v_cap, v_ref)
 
@@ -800,13 +801,18 @@ def _slot_brake_cap(v_leader: float, distance: float, a_max: float) -> float:
     return math.sqrt(v_leader * v_leader + 2.0 * a_max * distance)
 
 
-def _pursuit_cap(state, point, w_max: float, v_cap: float) -> float:
-    """``v_cap`` lowered to the speed at which the turn-rate limit still steers onto ``point`` (pure pursuit)."""
+def _pursuit_cap(state, point, lim, v_cap: float, clear=None) -> float:
+    """``v_cap`` lowered to the speed at which the turn-rate limit still steers onto ``point`` (pure pursuit); with
+    ``clear`` = (voxel centres, clearance), on the largest turn of ``clear_turn_radius`` that clears them
+    (``pursuit_clear``)."""
     d = (float(point[0]) - float(state[0]), float(point[1]) - float(state[1]))   # floats: no array glue
     dist = math.hypot(d[0], d[1])
     theta = abs(bearing_error(state, d)) if dist > 1e-9 else 0.0
     reach = dist / 2.0 if theta >= math.pi / 2 else dist / (2.0 * math.sin(theta)) if theta > 1e-9 else math.inf
-    return min(v_cap, w_max * reach)
+    if clear is not None and len(clear[0]) and math.isfinite(reach):
+        reach = clear_turn_radius(float(state[0]), float(state[1]), float(state[2]), float(state[PSI]), float(state[V]),
+                                  float(point[0]), float(point[1]), reach, clear[0], clear[1], lim.w_max, lim.a_max)
+    return min(v_cap, lim.w_max * reach)
 
 
 def _predict_unicycle(state, horizon: float, dt: float):

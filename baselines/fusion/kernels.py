@@ -11,6 +11,8 @@ from uavform_env.dynamics import V, VZ, wrap
 from uavform_env.formation import slot_xy
 from uavform_env.occupancy import MapArrays, voxel_logodds
 
+TURN_SHRINK, TURN_RADII, TURN_STEP = 0.7, 6, 0.1   # ``clear_turn_radius``: radii r_pp x 0.7^k, k < 6; path steps (m)
+
 
 def columns_without_gap(occ_map, centres: np.ndarray, z_min: float, z_max: float, gap: float,
                         seen: bool = True, misses: int = 0) -> np.ndarray:
@@ -318,3 +320,51 @@ def slot_errors(x, y, cos_psi, sin_psi, offsets, ids, states, alive):
         out[m] = math.sqrt(dx * dx + dy * dy)
         m += 1
     return out
+
+
+@numba.njit(cache=True)
+def _turn_path_clear(x, y, z, psi, px, py, run, r, centres, c2, ds):
+    """Whether the horizontal path at altitude z from (x, y) on heading ``psi``: ``run`` m straight on, then a turn on
+    radius ``r`` (0: in place) toward (px, py) until the nose points at it, then straight to it, keeps every centre
+    farther than sqrt(c2) and reaches the point (a turn too wide for it never does)."""
+    max_steps = int((run + 2.0 * math.pi * r + 2.0 * r + math.hypot(px - x, py - y)) / ds) + 2
+    travelled = 0.0
+    for _ in range(max_steps):
+        dx, dy = px - x, py - y
+        if math.hypot(dx, dy) <= ds:
+            return True
+        if travelled >= run:
+            err = wrap(math.atan2(dy, dx) - psi)
+            turn = ds / r if r > 0.0 else abs(err)
+            if abs(err) <= turn:                        # facing the point: the straight segment
+                psi += err
+            else:
+                psi += turn if err > 0.0 else -turn
+        x += ds * math.cos(psi)
+        y += ds * math.sin(psi)
+        travelled += ds
+        for k in range(centres.shape[0]):
+            ex, ey, ez = centres[k, 0] - x, centres[k, 1] - y, centres[k, 2] - z
+            if ex * ex + ey * ey + ez * ez <= c2:
+                return False
+    return False
+
+
+@numba.njit(cache=True)
+def clear_turn_radius(x, y, z, psi, v, px, py, r_pp, centres, clearance, w_max, a_max):
+    """The largest turning radius r of r_pp (the pure-pursuit radius onto (px, py)), r_pp x ``TURN_SHRINK``, ...
+    (``TURN_RADII`` radii) and 0 (a turn in place) whose path toward (px, py) keeps the voxel ``centres`` farther than
+    ``clearance`` (``_turn_path_clear``, in steps of ``TURN_STEP`` m): straight on while braking at ``a_max`` from the
+    speed ``v`` to the turn's speed w_max r, the turn until the nose points at the point, then straight to it;
+    r_pp when none does (the point is hidden: no turn helps)."""
+    c2 = clearance * clearance
+    r = r_pp
+    for i in range(TURN_RADII + 1):
+        if i == TURN_RADII:
+            r = 0.0
+        v_turn = w_max * r
+        run = (v * v - v_turn * v_turn) / (2.0 * a_max) if v > v_turn else 0.0
+        if _turn_path_clear(x, y, z, psi, px, py, run, r, centres, c2, TURN_STEP):
+            return r
+        r *= TURN_SHRINK
+    return r_pp
