@@ -110,3 +110,20 @@ def test_slot_blocked_from_the_local_voxels_equals_the_map_query():
                 occupied += want
         obs, *_ = penv.step(policy.act(obs, penv))
     assert fast > 1000 and occupied > 100           # the fast path and occupied answers were both exercised
+
+
+def test_clear_turn_radius_known_answers():
+    from baselines.fusion.kernels import clear_turn_radius
+    w_max, a_max = math.radians(20.0), 0.2
+    # the point 3 m left of a UAV at the origin heading +x: pure pursuit onto it is a half circle, r = 1.5
+    none = np.empty((0, 3))
+    assert clear_turn_radius(0.0, 0.0, 3.0, 0.0, 0.3, 0.0, 3.0, 1.5, none, 0.5, w_max, a_max) == 1.5
+    # a wall of voxels at x = 1.0 (y -2..5) cuts the wide arc (it reaches x = 1.5): a tighter turn clears it
+    wall = np.array([[1.0, y, 3.0] for y in np.arange(-2.0, 5.0, 0.1)])
+    r = clear_turn_radius(0.0, 0.0, 3.0, 0.0, 0.3, 0.0, 3.0, 1.5, wall, 0.5, w_max, a_max)
+    assert 0.0 <= r < 1.5 and r <= 0.5 + 1e-9
+    # the same wall ahead at 1 m/s: braking to any turn's speed runs 1 m or more straight into it: none clears
+    assert clear_turn_radius(0.0, 0.0, 3.0, 0.0, 1.0, 0.0, 3.0, 1.5, wall, 0.5, w_max, a_max) == 1.5
+    # a point hidden behind a wall across the way: no turn reaches it, the pure-pursuit radius stands
+    across = np.array([[x, 1.5, 3.0] for x in np.arange(-5.0, 5.0, 0.1)])
+    assert clear_turn_radius(0.0, 0.0, 3.0, 0.0, 0.3, 0.0, 3.0, 1.5, across, 0.5, w_max, a_max) == 1.5
