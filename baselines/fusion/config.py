@@ -60,8 +60,9 @@ class ExpertConfig(Config):
                        of its path (a leader passed a wall's opening 0.5 m/s too fast and followed the wall) [X]
     pursuit_clear      with ``pursuit_speed_cap``, the turn onto the point must also clear the UAV's own map: the cap is
                        w_max x the largest radius, of the pure-pursuit radius and smaller ones down to a turn in place
-                       (``kernels.clear_turn_radius``), whose turn toward the point, then straight on to it, keeps
-                       r_uav + r_safe from its voxels near DWA's reach. A follower flying along a wall at 1 m/s toward a
+                       (``kernels.clear_turn_radius``), whose path (straight on while braking at a_max to the
+                       turn's speed, the turn toward the point, then straight to it) keeps r_uav + r_safe from its
+                       voxels near DWA's reach. A follower flying along a wall at 1 m/s toward a
                        slot through a door 90 degrees off its nose took the pure-pursuit arc's speed, which runs into
                        the wall, passed the door and was pinned beyond it (dog-leg v1-dev s200255) [X]
     final_approach_free  closing on a fixed target (the leader on its goal, a follower on a parked slot) within
@@ -351,8 +352,8 @@ class ExpertConfig(Config):
     BOUNDS: ClassVar[dict] = {
         "dwa": instance_of(DWAConfig), "vfh": instance_of(VFHConfig), "astar": instance_of(AStarConfig),
         **{name: boolean for name in ("use_vfh", "neighbour_prediction", "shape_switching", "column_at_goal",
-                                      "climb_target_limit", "gap_hold", "slot_brake",
-                                      "park_turn", "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap", "pursuit_clear",
+                                      "climb_target_limit", "gap_hold", "slot_brake", "park_turn",
+                                      "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap", "pursuit_clear",
                                       "rejoin_hidden", "final_approach_free", "wind_drift", "dock_approach",
                                       "explore_unknown", "route_turn_cost", "fence_margin")},
         "astar_layer": one_of(ASTAR_LAYERS),

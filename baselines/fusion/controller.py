@@ -31,8 +31,8 @@ from ..vertical import BLOCKED, CLIMB, LEVEL, PlannerMemory
 from ..vfh3d import VFHPlanner
 from .config import ExpertConfig
 from .kernels import (clear_turn_radius, closest_approach_of, columns_without_gap, gap_altitude_kernel, in_sphere,
-                      live_within, mark_cells, open_level_way, predicted_movers, segment_clear, slot_errors, surface_clearance,
-                      trail_lags)
+                      live_within, mark_cells, open_level_way, predicted_movers, segment_clear, slot_errors,
+                      surface_clearance, trail_lags)
 from .rules import (RULES, Command, Cycle, bearing_error, braking_share, clamp, drift_persistence, fence_clearance,
                     gust_speed, leader_parked, rest_standoff, station_keep, wind_estimate, wind_margin)
 
@@ -810,8 +810,9 @@ def _pursuit_cap(state, point, lim, v_cap: float, clear=None) -> float:
     theta = abs(bearing_error(state, d)) if dist > 1e-9 else 0.0
     reach = dist / 2.0 if theta >= math.pi / 2 else dist / (2.0 * math.sin(theta)) if theta > 1e-9 else math.inf
     if clear is not None and len(clear[0]) and math.isfinite(reach):
-        reach = clear_turn_radius(float(state[0]), float(state[1]), float(state[2]), float(state[PSI]), float(state[V]),
-                                  float(point[0]), float(point[1]), reach, clear[0], clear[1], lim.w_max, lim.a_max)
+        x, y, z, psi, v = (float(state[i]) for i in (0, 1, 2, PSI, V))
+        reach = clear_turn_radius(x, y, z, psi, v, float(point[0]), float(point[1]), reach, clear[0], clear[1],
+                                  lim.w_max, lim.a_max)
     return min(v_cap, lim.w_max * reach)
 
 
