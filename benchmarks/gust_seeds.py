@@ -9,14 +9,15 @@ few crashes from any change of the flight (session 8: +-2 crashes of 28). Here t
 seeds: wind 0 is the episode's own seed (its flight is the suite's, bit for bit), wind k > 0 the seed
 ``SeedSequence([episode.seed, k])`` draws. The policy is the expert (``FusionExpert``) with the ``--set`` overrides of
 its ``ExpertConfig`` fields (``part.name`` for a field of its ``dwa``, ``vfh`` or ``astar`` config). Printed: flights,
-flights with a collision, successes, and per episode the outcomes of its winds (s success, t time-out, c crash);
-``--out`` keeps one JSON line per flight.
+flights with a collision, successes, the median over flights of the formation error's RMS (``episode_metrics``), and
+per episode the outcomes of its winds (s success, t time-out, c crash); ``--out`` keeps one JSON line per flight.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from dataclasses import fields, replace
@@ -40,7 +41,7 @@ def fly(episode: dict, k: int, overrides: dict) -> dict:
     """One flight of ``episode`` (its layout) under wind ``k`` by the expert with ``overrides``: a result record."""
     from baselines.fusion import FusionExpert
     from uavform_env.formation_v0 import parallel_env
-    from uavform_env.metrics import episode_outcome
+    from uavform_env.metrics import episode_metrics, episode_outcome
     from uavform_env.rollout import run_episode
 
     ep = Episode(**episode)
@@ -49,7 +50,8 @@ def fly(episode: dict, k: int, overrides: dict) -> dict:
     run_episode(penv, FusionExpert(ExpertConfig(**overrides)), wind_seed(ep.seed, k))
     outcome, detail = episode_outcome(penv.unwrapped)
     return {"episode": ep.key, "wind": k, "outcome": outcome, "detail": detail,
-            "steps": int(penv.unwrapped.step_count), "wall_time": time.perf_counter() - start}
+            "steps": int(penv.unwrapped.step_count), "wall_time": time.perf_counter() - start,
+            "formation_error_rms": episode_metrics(penv.unwrapped)["formation_error_rms"]}
 
 
 def parse_overrides(items: list[str]) -> dict:
@@ -106,8 +108,10 @@ def main(argv=None) -> int:
             f.writelines(json.dumps(r) + "\n" for r in records)
     crashed = [r for r in records if r["outcome"].startswith("crash")]
     success = [r for r in records if r["outcome"] == "success"]
+    errors = [r["formation_error_rms"] for r in records if not math.isnan(r["formation_error_rms"])]
     print(f"overrides {' '.join(args.set) or 'none'}; {len(episodes)} episodes x {args.winds} winds = "
-          f"{len(records)} flights: {len(crashed)} with a collision, {len(success)} successes")
+          f"{len(records)} flights: {len(crashed)} with a collision, {len(success)} successes; formation error RMS "
+          + (f"median {np.median(errors):.2f} m (flights with followers)" if errors else "- (no followers)"))
     for e in episodes:
         marks = "".join(MARKS.get(r["outcome"], "c") for r in records if r["episode"] == e.key)
         print(f"  {marks}  {e.key}")
