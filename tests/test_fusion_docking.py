@@ -1,6 +1,8 @@
 """Followers reaching their slots (issue 13, "no frozen followers"): the known-gap altitude held in LEVEL mode
-(``ExpertConfig.gap_hold``), the in-place turn into a wall's gap (rule ``gap_turn``) and the stopping-distance
-cap of a follower closing on a parking leader's slot (``slot_brake``)."""
+(``ExpertConfig.gap_hold``), the in-place turn into a wall's gap (rule ``gap_turn``), the stopping-distance
+cap of a follower closing on a parking leader's slot (``slot_brake``), a wall unseen at the slot's altitude
+(``gap_unseen_wall``); and the leader's arrival: the lookahead on the goal at the path's end (``path_to_goal``),
+its speed when it flies alone (``solo_full_speed``)."""
 
 import math
 from types import SimpleNamespace
@@ -65,11 +67,11 @@ class _LevelVFH:
                                window_open=np.ones((36, 72), bool))     # 5-degree cells, all open
 
 
-def _wall_with_gap(gap_lo, gap_hi, x_wall=2.0, res=0.2):
+def _wall_with_gap(gap_lo, gap_hi, x_wall=2.0, res=0.2, seen_from=0.0):
     """An own map that has seen a wall across y at x_wall..x_wall + 0.4, occupied outside [gap_lo, gap_hi] and
-    known free inside it (level rays from the UAV's side through the gap)."""
+    known free inside it (level rays from the UAV's side through the gap); below ``seen_from`` it is unknown."""
     occ = OccupancyMap(np.array([-2.0, -4.0, 0.0]), (40, 40, 40), res)
-    zs = np.arange(res / 2, 7.9, res)
+    zs = np.arange(seen_from + res / 2, 7.9, res)
     ys = np.arange(-2.9, 3.0, res)
     for y in ys:
         wall = [(x_wall + 0.1, y, z) for z in zs if not gap_lo <= z <= gap_hi]
@@ -119,3 +121,72 @@ def test_gap_altitude_looks_along_the_target_line_out_to_the_lookahead_only():
     assert _gap_altitude(view, np.array([0.0, 0.0]), 3.65, cfg) is None          # on the target
     assert _gap_altitude(view, np.array([4.0, 0.0]), 3.65, ExpertConfig(gap_lookahead=1.5)) is None   # too short
     assert _gap_altitude(view, np.array([4.0, 0.0]), 3.65, ExpertConfig(gap_lookahead=0)) is None     # ablation
+
+
+def test_gap_unseen_wall_keeps_the_gap_when_the_wall_is_unseen_at_the_slot_altitude():
+    from baselines.fusion.controller import _gap_altitude
+    occ = _wall_with_gap(3.3, 5.4, seen_from=2.0)                   # the wall seen from 2.0 m up only
+    view = SimpleNamespace(state=np.array([0.0, 0.0, 4.0, 0.0, 0.3, 0.0, 0.0]), limits=LIM, occupancy=occ)
+    gap_z = 3.2 + LIM.r_uav + LIM.r_safe + ExpertConfig().gap_margin  # as in the tests above
+    # the slot 3 m below, where the map knows nothing: the band there holds no voxel, so without the flag the
+    # level reads as clear and the UAV would descend along the wall; with it, the seen wall above the band blocks
+    assert _gap_altitude(view, np.array([4.0, 0.0]), 1.0, ExpertConfig(gap_unseen_wall=False)) is None
+    assert _gap_altitude(view, np.array([4.0, 0.0]), 1.0, ExpertConfig(gap_unseen_wall=True)) == pytest.approx(gap_z)
+    open_below = _wall_with_gap(3.3, 5.4, seen_from=2.0)
+    below = np.array([[2.3, y, z] for y in np.arange(-2.9, 3.0, 0.2) for z in (1.9, 1.7)])   # through the wall
+    open_below.integrate(np.array([-1.0, 0.0, 1.8]), below, np.zeros(len(below), bool))   # free just below 2.0
+    # the first known voxel from the band upward is free now (rays under the seen wall): no wall is assumed
+    assert _gap_altitude(view_with(open_below), np.array([4.0, 0.0]), 1.0, ExpertConfig(gap_unseen_wall=True)) is None
+    # the UAV below the band: the voxels above the band toward it are not searched past its altitude
+    low = SimpleNamespace(state=np.array([0.0, 0.0, 0.8, 0.0, 0.3, 0.0, 0.0]), limits=LIM, occupancy=occ)
+    assert _gap_altitude(low, np.array([4.0, 0.0]), 0.6, ExpertConfig(gap_unseen_wall=True)) is None
+
+
+def view_with(occ):
+    return SimpleNamespace(state=np.array([0.0, 0.0, 4.0, 0.0, 0.3, 0.0, 0.0]), limits=LIM, occupancy=occ)
+
+
+def _leader_on_path(goal, points, cfg):
+    """A leader at the start of ``points`` (its A* path, just checked) with goal ``goal``; its ``_guidance``."""
+    from baselines.astar import GlobalPath, Raster
+    expert = FusionExpert(cfg)
+    expert.raster = Raster(origin=(0.0, 0.0), shape=(40, 40), res=0.5)
+    mem = _UAVMemory()
+    mem.replans, mem.last_check_time, mem.path_found = 1, 0.0, True
+    mem.path = GlobalPath(np.asarray(points, dtype=np.float64))
+    view = SimpleNamespace(state=np.array([*points[0], 3.0, 0.0, 0.0, 0.0, 0.0]), limits=LIM, is_leader=True)
+    return expert._guidance(view, mem, cfg, 0.0, np.asarray(goal, dtype=np.float64))
+
+
+def test_path_to_goal_puts_the_lookahead_on_the_goal_in_the_path_end_cell():
+    end = (5.25, 5.25)                                             # the centre of cell (10, 10) of the 0.5 m raster
+    points = [(4.75, 5.25), end]
+    goal = (5.45, 5.45)                                            # in that cell, 0.28 m from its centre
+    assert np.allclose(_leader_on_path(goal, points, ExpertConfig(path_to_goal=False)), end)
+    assert np.allclose(_leader_on_path(goal, points, ExpertConfig(path_to_goal=True)), goal)
+    snapped = (5.55, 5.25)                                         # the goal in the next cell: the path was snapped
+    assert np.allclose(_leader_on_path(snapped, points, ExpertConfig(path_to_goal=True)), end)
+    long = [(0.25, 5.25), (1.25, 5.25), (2.25, 5.25), (3.25, 5.25), (4.25, 5.25), end]
+    ahead = _leader_on_path(goal, long, ExpertConfig(path_to_goal=True))  # lookahead short of the end: a path node
+    assert ahead.tolist() in [list(p) for p in long[:-1]]
+
+
+class _StraightOn(FusionExpert):
+    """The expert with its A* guidance replaced by a point 3 m ahead: ``_leader_target``'s speed cap alone."""
+
+    def _guidance(self, view, mem, cfg, t, goal_xy):
+        return view.state[:2] + np.array([3.0, 0.0])
+
+
+@pytest.mark.parametrize("followers", [0, 1])
+def test_solo_full_speed_lifts_the_followers_margin_from_a_leader_flying_alone(followers):
+    cfg_on, cfg_off = ExpertConfig(solo_full_speed=True), ExpertConfig(solo_full_speed=False)
+    states = np.array([[-2.0, 0.0, 3.0, 0.0, 0.5, 0.0, 0.0]] * followers).reshape(-1, 7)   # on its slot (-2, 0)
+    view = SimpleNamespace(state=np.array([0.0, 0.0, 3.0, 0.0, 0.5, 0.0, 0.0]), limits=LIM,
+                           goal=np.array([20.0, 0.0, 3.0]), config=EnvConfig(),
+                           offsets=np.array([[0.0, 0.0, 0.0], [-2.0, 0.0, 0.0]]),
+                           neighbour_ids=np.arange(1, 1 + followers), neighbour_states=states,
+                           neighbour_alive=np.ones(followers, bool))
+    caps = [_StraightOn(cfg)._leader_target(view, _UAVMemory(), cfg, 0.0)[2] for cfg in (cfg_on, cfg_off)]
+    margin = ExpertConfig().leader_speed_cap * LIM.v_max
+    assert caps == pytest.approx([LIM.v_max, margin] if followers == 0 else [margin, margin])

@@ -81,6 +81,8 @@ class ExpertConfig(Config):
     e0, e1, min_leader_scale  leader formation feedback of (g2): its speed cap scales from 1 at a mean follower
                        error e0 down to min_leader_scale at e1 [D: the spec's 1 m, 3 m, 0.3 held a forest
                        formation, which is always stretched, at 0.24 m/s]
+    solo_full_speed    a leader with no live follower flies up to v_max: ``leader_speed_cap`` is the followers'
+                       speed margin (g2), and a UAV flying alone needs none [X]
     vfh_neighbour_radius  neighbours closer than this become 3D VFH+ pseudo-voxels (g6); farther ones are
                        left to DWA, so the formation's own members do not close the level gaps [X]
     level_line         LEVEL also when the straight segment to the target point keeps r_uav + r_safe + a voxel's
@@ -98,6 +100,11 @@ class ExpertConfig(Config):
                        wall slides along it (3D VFH+ offers only the ways along the face) [X]
     rejoin_hidden      also rejoin when the straight segment to the slot passes within r_uav + a voxel's half-diagonal
                        of an occupied voxel of the own map (the slot is behind an obstacle, however near) [X]
+    path_to_goal       the A* lookahead at the path's end is the goal itself when the path ends in the goal's raster
+                       cell: the path runs through cell centres, and a leader at the end of the path sat 0.35 m from
+                       its goal (outside ``arrive_radius``), its pursuit cap toward a lookahead under itself at 0, and
+                       turned to and fro for the last 40 s; the followers' predicted slots swung with it (wall-gap
+                       v1-dev s200118) [X]
     arrive_radius      the leader stops once this close to the goal (horizontally) and holds there for the rest
                        of the mission (the DWA stopping rule of (b10)); the default DWA's approach speed
                        profile brakes to rest 0.1 m from the goal (``dwa.r_goal``, inside ``arrive_radius``):
@@ -111,6 +118,11 @@ class ExpertConfig(Config):
                        vertical run through the next ``gap_depth`` m of obstacle (3D VFH+'s 5x5 window cannot
                        resolve gaps of about 2 m) with altitude gain ``k_gap``, at most ``gap_speed`` m/s
                        and with leaf voxels as DWA obstacles while it passes [X]
+    gap_unseen_wall    the gap rule's level test also finds the band around the target altitude blocked where it is
+                       all unknown and the first known voxel from it toward the UAV's altitude is occupied: a wall
+                       seen down to there is taken to go on. A follower in a wall's gap 5 m above its slot's
+                       altitude (the leader had descended to its goal) saw the band there as unknown, lost the gap
+                       and slid down along the wall for 20 s (wall-gap v1-dev s200118) [X]
     gap_hold           with a known gap ahead (the gap rule finds the slot's or cruise altitude blocked within
                        ``gap_lookahead`` and returns another), LEVEL mode holds the gap's altitude, not the slot's:
                        3D VFH+ sees a level way at the UAV's own altitude inside the gap while the altitude hold
@@ -276,6 +288,7 @@ class ExpertConfig(Config):
     k_h: float = 1.0
     k_z: float = 0.5
     leader_speed_cap: float = 0.8
+    solo_full_speed: bool = True
     e0: float = 1.5
     e1: float = 5.0
     min_leader_scale: float = 0.5
@@ -294,6 +307,7 @@ class ExpertConfig(Config):
     trail_spacing: float = 0.25
     trail_window: int = 400
     arrive_radius: float = 0.3
+    path_to_goal: bool = True
     stuck_window: float = 10.0
     gap_lookahead: float = 4.0
     gap_depth: float = 1.0
@@ -302,6 +316,7 @@ class ExpertConfig(Config):
     gap_speed: float = 0.3
     climb_target_limit: bool = True
     gap_hold: bool = False
+    gap_unseen_wall: bool = True
     slot_brake: bool = True
     gap_turn_angle: float = math.radians(45.0)
     hold_radius: float = 0.25
@@ -352,10 +367,11 @@ class ExpertConfig(Config):
     BOUNDS: ClassVar[dict] = {
         "dwa": instance_of(DWAConfig), "vfh": instance_of(VFHConfig), "astar": instance_of(AStarConfig),
         **{name: boolean for name in ("use_vfh", "neighbour_prediction", "shape_switching", "column_at_goal",
-                                      "climb_target_limit", "gap_hold", "slot_brake", "park_turn",
-                                      "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap", "pursuit_clear",
-                                      "rejoin_hidden", "final_approach_free", "wind_drift", "dock_approach",
-                                      "explore_unknown", "route_turn_cost", "fence_margin")},
+                                      "climb_target_limit", "gap_hold", "gap_unseen_wall", "path_to_goal", "slot_brake",
+                                      "park_turn", "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap",
+                                      "pursuit_clear", "rejoin_hidden", "final_approach_free", "wind_drift",
+                                      "dock_approach", "explore_unknown", "route_turn_cost", "fence_margin",
+                                      "solo_full_speed")},
         "astar_layer": one_of(ASTAR_LAYERS),
         "rejoin": one_of(REJOIN_MODES),
         "park_heading": one_of(PARK_HEADINGS),

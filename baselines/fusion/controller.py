@@ -419,7 +419,8 @@ class FusionExpert(OnboardPolicy):
         if errors.size:
             mean_err = float(np.add.reduce(errors) / errors.size)           # np.mean's sum and division
             scale = clamp(1.0 - (mean_err - cfg.e0) / (cfg.e1 - cfg.e0), cfg.min_leader_scale, 1.0)
-        return goal, lookahead, cfg.leader_speed_cap * lim.v_max * scale, None
+        share = cfg.leader_speed_cap if errors.size or not cfg.solo_full_speed else 1.0    # margin for followers
+        return goal, lookahead, share * lim.v_max * scale, None
 
     @staticmethod
     def _pace_errors(view, mem: _UAVMemory, cfg: ExpertConfig) -> np.ndarray:
@@ -467,7 +468,18 @@ class FusionExpert(OnboardPolicy):
                     mem.goal_visible = not sight.corridor_blocked(inflated, self.raster)
         if not mem.path_found:
             return None
-        return mem.path.lookahead(pos_xy, cfg.astar.lookahead)
+        point = mem.path.lookahead(pos_xy, cfg.astar.lookahead)
+        if cfg.path_to_goal and point is not None and self._same_cell(point, mem.path.points[-1], goal_xy):
+            return np.array(goal_xy[:2], dtype=np.float64)      # the path's end stands for the goal in its cell
+        return point
+
+    def _same_cell(self, point, end, goal_xy) -> bool:
+        """Whether ``point`` is the path's ``end`` and that lies in the raster cell of ``goal_xy`` (not snapped)."""
+        if float(point[0]) != float(end[0]) or float(point[1]) != float(end[1]):
+            return False
+        origin, res = self.raster.origin, self.raster.res
+        return all(math.floor((float(end[k]) - origin[k]) / res) == math.floor((float(goal_xy[k]) - origin[k]) / res)
+                   for k in (0, 1))
 
     def _plan(self, view, mem: _UAVMemory, t: float, goal_xy, blocked=None, inflated=None):
         """A* from the UAV to ``goal_xy`` on ``blocked`` (its raster; None: made here); ``inflated``: ``blocked``
@@ -765,7 +777,7 @@ def _gap_altitude(view, target_xy, z_pref: float, cfg: ExpertConfig) -> float | 
     span = max(1, int(round(cfg.gap_depth / res)))
     best = gap_altitude_kernel(tuple(occ.arrays()), occ.origin, res, pos, dx / dist, dy / dist,
                                float(min(cfg.gap_lookahead, dist + res)), z_pref, span, lim.r_uav + lim.r_safe,
-                               lim.z_min, lim.z_max, cfg.gap_margin)
+                               lim.z_min, lim.z_max, cfg.gap_margin, cfg.gap_unseen_wall)
     return None if math.isnan(best) else best
 
 

@@ -122,11 +122,14 @@ def segment_clear(centres, a, b, clearance):
 
 
 @numba.njit(cache=True)
-def gap_altitude_kernel(parts, origin, res, pos, ux, uy, t_stop, z_pref, span, h_b, z_min, z_max, margin):
+def gap_altitude_kernel(parts, origin, res, pos, ux, uy, t_stop, z_pref, span, h_b, z_min, z_max, margin,
+                        unseen_wall=False):
     """The known-gap altitude on the leaves (``parts``: the fields of a ``MapArrays`` as a plain tuple, which numba
     types from Python far faster than a new named tuple every call): the columns at ``pos + t * (ux, uy)`` for t in
     ``np.arange(res, t_stop, res)`` (its values: res + i res), the first blocking the band around ``z_pref``, and
-    the runs known free through it and the next ``span - 1`` columns; NaN if none."""
+    the runs known free through it and the next ``span - 1`` columns; NaN if none. A column blocks the band with an
+    occupied voxel in it, or (``unseen_wall``) with the band all unknown and the first known voxel from the band
+    toward the UAV's altitude ``pos[2]`` occupied: a wall seen down (or up) to there, unseen beyond."""
     leaves = MapArrays(*parts)
     nx, ny, nz = leaves.shape[0], leaves.shape[1], leaves.shape[2]
     n_t = max(0, math.ceil((t_stop - res) / res))
@@ -144,10 +147,17 @@ def gap_altitude_kernel(parts, origin, res, pos, ux, uy, t_stop, z_pref, span, h
     z = origin[2] + (np.arange(nz) + 0.5) * res
     first = -1
     for i in range(k_cols):
+        known = False
         for k in range(nz):
-            if abs(z[k] - z_pref) <= h_b + res / 2 and voxel_logodds(leaves, cols[i, 0], cols[i, 1], k) > 0.0:
-                first = i
-                break
+            if abs(z[k] - z_pref) <= h_b + res / 2:
+                value = voxel_logodds(leaves, cols[i, 0], cols[i, 1], k)
+                known = known or not math.isnan(value)
+                if value > 0.0:
+                    first = i
+                    break
+        if first < 0 and unseen_wall and not known and _wall_beyond(leaves, cols[i, 0], cols[i, 1], z, z_pref,
+                                                                    pos[2], h_b + res / 2):
+            first = i
         if first >= 0:
             break
     if first < 0:
@@ -161,6 +171,23 @@ def gap_altitude_kernel(parts, origin, res, pos, ux, uy, t_stop, z_pref, span, h
                 break
         free[k] = ok
     return _nearest_free_run(free, z, res, h_b, z_min, z_max, z_pref, margin)
+
+
+@numba.njit(cache=True)
+def _wall_beyond(leaves, i, j, z, z_pref, z_uav, half):
+    """Whether the first known voxel of column (i, j) past the band ``z_pref`` +- ``half``, going toward ``z_uav``
+    (up to the UAV's altitude), is occupied."""
+    up = z_uav > z_pref
+    for step in range(z.size):
+        k = step if up else z.size - 1 - step
+        if (z[k] <= z_pref + half) if up else (z[k] >= z_pref - half):
+            continue                                            # inside the band, or on its far side
+        if (z[k] > z_uav) if up else (z[k] < z_uav):
+            return False                                        # past the UAV's altitude
+        value = voxel_logodds(leaves, i, j, k)
+        if not math.isnan(value):
+            return value > 0.0
+    return False
 
 
 @numba.njit(cache=True)
