@@ -445,7 +445,8 @@ class FusionExpert(OnboardPolicy):
         return np.minimum(errors, lags)
 
     def _guidance(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float, goal_xy: np.ndarray):
-        """A* lookahead point toward ``goal_xy`` on this UAV's own map, replanned on the (d5) triggers.
+        """A* lookahead point toward ``goal_xy`` on this UAV's own map, replanned on the (d5) triggers; at the end
+        of a path that ends in the goal's raster cell, the goal itself (``path_to_goal``).
 
         None when no path exists (the goal is unreachable on what this UAV knows).
         """
@@ -469,7 +470,7 @@ class FusionExpert(OnboardPolicy):
         if not mem.path_found:
             return None
         point = mem.path.lookahead(pos_xy, cfg.astar.lookahead)
-        if cfg.path_to_goal and point is not None and self._same_cell(point, mem.path.points[-1], goal_xy):
+        if cfg.path_to_goal and self._same_cell(point, mem.path.points[-1], goal_xy):
             return np.array(goal_xy[:2], dtype=np.float64)      # the path's end stands for the goal in its cell
         return point
 

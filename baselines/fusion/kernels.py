@@ -123,7 +123,7 @@ def segment_clear(centres, a, b, clearance):
 
 @numba.njit(cache=True)
 def gap_altitude_kernel(parts, origin, res, pos, ux, uy, t_stop, z_pref, span, h_b, z_min, z_max, margin,
-                        unseen_wall=False):
+                        unseen_wall):
     """The known-gap altitude on the leaves (``parts``: the fields of a ``MapArrays`` as a plain tuple, which numba
     types from Python far faster than a new named tuple every call): the columns at ``pos + t * (ux, uy)`` for t in
     ``np.arange(res, t_stop, res)`` (its values: res + i res), the first blocking the band around ``z_pref``, and
