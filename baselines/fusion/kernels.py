@@ -383,8 +383,15 @@ def clear_turn_radius(x, y, z, psi, v, px, py, r_pp, centres, clearance, w_max, 
     (``TURN_RADII`` radii) and 0 (a turn in place) whose path toward (px, py) keeps the voxel ``centres`` farther than
     ``clearance`` (``_turn_path_clear``, in steps of ``TURN_STEP`` m): straight on while braking at ``a_max`` from the
     speed ``v`` to the turn's speed w_max r, the turn until the nose points at the point, then straight to it;
-    r_pp when none does (the point is hidden: no turn helps)."""
+    r_pp when none does (the point is hidden: no turn helps). Only the centres within ``clearance`` of the path's
+    altitude can come that near (the squared distance is at least the squared height difference, in floats too), so
+    the paths are tested against that slab of them."""
     c2 = clearance * clearance
+    near = np.empty(centres.shape[0], np.bool_)
+    for k in range(centres.shape[0]):
+        ez = centres[k, 2] - z
+        near[k] = ez * ez <= c2
+    centres = centres[near]
     r = r_pp
     for i in range(TURN_RADII + 1):
         if i == TURN_RADII:
