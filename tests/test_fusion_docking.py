@@ -81,6 +81,11 @@ def _wall_with_gap(gap_lo, gap_hi, x_wall=2.0, res=0.2, seen_from=0.0):
     return occ
 
 
+def _gap_view(occ, z_uav):
+    """The view ``_gap_altitude`` reads: a UAV at (0, 0, ``z_uav``) heading +x at 0.3 m/s, with own map ``occ``."""
+    return SimpleNamespace(state=np.array([0.0, 0.0, z_uav, 0.0, 0.3, 0.0, 0.0]), limits=LIM, occupancy=occ)
+
+
 def _vertical(gap_hold, z_uav, z_slot, occ):
     cfg = ExpertConfig(gap_hold=gap_hold, debounce=1)
     expert = FusionExpert(cfg, vfh=_LevelVFH())
@@ -112,7 +117,7 @@ def test_gap_hold_keeps_the_gap_altitude_where_the_slot_altitude_is_too_near_the
 def test_gap_altitude_looks_along_the_target_line_out_to_the_lookahead_only():
     from baselines.fusion.controller import _gap_altitude
     occ = _wall_with_gap(3.3, 5.4)                                  # the wall at x = 2.0..2.4, the UAV at x = 0
-    view = SimpleNamespace(state=np.array([0.0, 0.0, 4.0, 0.0, 0.3, 0.0, 0.0]), limits=LIM, occupancy=occ)
+    view = _gap_view(occ, 4.0)
     cfg = ExpertConfig()
     gap_z = 3.2 + LIM.r_uav + LIM.r_safe + cfg.gap_margin           # as in the gap_hold test above
     assert _gap_altitude(view, np.array([4.0, 0.0]), 3.65, cfg) == pytest.approx(gap_z)
@@ -126,7 +131,7 @@ def test_gap_altitude_looks_along_the_target_line_out_to_the_lookahead_only():
 def test_gap_unseen_wall_keeps_the_gap_when_the_wall_is_unseen_at_the_slot_altitude():
     from baselines.fusion.controller import _gap_altitude
     occ = _wall_with_gap(3.3, 5.4, seen_from=2.0)                   # the wall seen from 2.0 m up only
-    view = SimpleNamespace(state=np.array([0.0, 0.0, 4.0, 0.0, 0.3, 0.0, 0.0]), limits=LIM, occupancy=occ)
+    view = _gap_view(occ, 4.0)
     gap_z = 3.2 + LIM.r_uav + LIM.r_safe + ExpertConfig().gap_margin  # as in the tests above
     # the slot 3 m below, where the map knows nothing: the band there holds no voxel, so without the flag the
     # level reads as clear and the UAV would descend along the wall; with it, the seen wall above the band blocks
@@ -136,14 +141,11 @@ def test_gap_unseen_wall_keeps_the_gap_when_the_wall_is_unseen_at_the_slot_altit
     below = np.array([[2.3, y, z] for y in np.arange(-2.9, 3.0, 0.2) for z in (1.9, 1.7)])   # through the wall
     open_below.integrate(np.array([-1.0, 0.0, 1.8]), below, np.zeros(len(below), bool))   # free just below 2.0
     # the first known voxel from the band upward is free now (rays under the seen wall): no wall is assumed
-    assert _gap_altitude(view_with(open_below), np.array([4.0, 0.0]), 1.0, ExpertConfig(gap_unseen_wall=True)) is None
+    assert _gap_altitude(_gap_view(open_below, 4.0), np.array([4.0, 0.0]), 1.0,
+                         ExpertConfig(gap_unseen_wall=True)) is None
     # the UAV below the band: the voxels above the band toward it are not searched past its altitude
-    low = SimpleNamespace(state=np.array([0.0, 0.0, 0.8, 0.0, 0.3, 0.0, 0.0]), limits=LIM, occupancy=occ)
+    low = _gap_view(occ, 0.8)
     assert _gap_altitude(low, np.array([4.0, 0.0]), 0.6, ExpertConfig(gap_unseen_wall=True)) is None
-
-
-def view_with(occ):
-    return SimpleNamespace(state=np.array([0.0, 0.0, 4.0, 0.0, 0.3, 0.0, 0.0]), limits=LIM, occupancy=occ)
 
 
 def _leader_on_path(goal, points, cfg):
