@@ -8,7 +8,7 @@ import numpy as np
 from baselines.fusion import FusionExpert
 from baselines.fusion.controller import _occupied_within
 from baselines.fusion.kernels import (closest_approach, closest_approach_of, in_sphere, live_within, mark_cells,
-                                      nearest_live, predicted_movers, slot_errors)
+                                      nearest_live, predicted_movers, slot_errors, trail_arc, trail_points)
 from uavform_env import parallel_env
 from uavform_env.dynamics import PSI, V, VZ
 from uavform_env.formation import slot_positions
@@ -127,3 +127,45 @@ def test_clear_turn_radius_known_answers():
     # a point hidden behind a wall across the way: no turn reaches it, the pure-pursuit radius stands
     across = np.array([[x, 1.5, 3.0] for x in np.arange(-5.0, 5.0, 0.1)])
     assert clear_turn_radius(0.0, 0.0, 3.0, 0.0, 0.3, 0.0, 3.0, 1.5, across, 0.5, w_max, a_max) == 1.5
+
+
+def test_trail_arc_and_points_known_answers():
+    """An L-shaped trail: the leader at (0, 0) came from (0, -4) via (-3, -4) (points oldest first). Arcs run from the
+    leader back along the trail: (0, -4) is 4 m back, (-3, -4) 7 m."""
+    trail = np.array([[-3.0, -4.0], [-2.0, -4.0], [0.0, -4.0], [0.0, -2.0]])
+    leader = np.array([0.0, 0.0])
+    points, reached = trail_points(trail, leader, np.array([0.0, 1.5, 4.0, 5.5, 7.0]))
+    assert reached
+    assert np.allclose(points, [[0.0, 0.0], [0.0, -1.5], [0.0, -4.0], [-1.5, -4.0], [-3.0, -4.0]])
+    points, reached = trail_points(trail, leader, np.array([2.0, 9.0]))     # beyond the oldest point: that point
+    assert not reached and np.allclose(points, [[0.0, -2.0], [-3.0, -4.0]])
+    assert trail_arc(trail, leader, np.array([0.5, -1.0]), 20.0) == 1.0      # beside the newest leg
+    assert math.isclose(trail_arc(trail, leader, np.array([-1.0, -5.0]), 20.0), 5.0)   # below the older leg
+    assert trail_arc(trail, leader, np.array([-1.0, -5.0]), 3.0) == 4.0      # only the part within 3 m of the leader
+    # a trail that doubles back: the newest of equally near points counts
+    back = np.array([[0.0, 0.0], [4.0, 0.0]])
+    assert trail_arc(back, np.array([0.0, 0.0]), np.array([2.0, 0.0]), 20.0) == 2.0
+
+
+def test_file_place_follows_the_trail_round_a_corner():
+    """A follower (index 1) in single file behind a leader that turned a corner: its place lies on the leader's trail,
+    its goal ahead of it along the trail (not across the corner), and its lag is its arc length behind its place."""
+    from types import SimpleNamespace
+
+    from baselines.fusion import ExpertConfig
+    from baselines.fusion.controller import _UAVMemory
+
+    cfg = ExpertConfig()
+    trail = np.array([[-6.0, 0.0], [-4.0, 0.0], [-2.0, 0.0], [0.0, 0.0], [0.0, 2.0]])   # east, then north
+    mem = _UAVMemory(trail=trail)
+    lead = np.zeros(7)
+    lead[:2], lead[V] = (0.0, 3.0), 0.0
+    view = SimpleNamespace(index=1, config=SimpleNamespace(formation=SimpleNamespace(spacing=2.0)),
+                           state=np.array([-4.0, 0.0, 2.0]))
+    goal, lookahead, place, e_par = FusionExpert._file_place(view, mem, cfg, lead, lead_moving=False)
+    assert np.allclose(place, [0.0, 1.0])                    # 2 m back along the trail from (0, 3)
+    assert math.isclose(e_par, 5.0)                          # the follower is 7 m back: 5 m behind its place
+    assert np.allclose(goal, [-4.0 + cfg.astar.lookahead, 0.0])   # along the trail's eastward leg, not to (0, 1)
+    assert np.allclose(lookahead, [-4.0 + cfg.astar.lookahead + cfg.k_h, 0.0])
+    short = _UAVMemory(trail=trail[-1:])                    # 1 m of trail: shorter than the place's 2 m
+    assert FusionExpert._file_place(view, short, cfg, lead, lead_moving=False) is None

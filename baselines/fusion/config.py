@@ -19,6 +19,7 @@ ASTAR_LAYERS = ("passable", "band")
 REJOIN_MODES = ("astar", "trail")
 PARK_HEADINGS = ("nearest", "followers")
 LEADER_PACES = ("slot", "trail")
+COLUMN_SHAPES = ("rigid", "trail")
 
 
 @dataclass(frozen=True)
@@ -33,6 +34,11 @@ class ExpertConfig(Config):
                        closes on its own slot, which is what the env judges (DWA keeps its clearance): a follower
                        whose map showed a voxel within r_uav + r_safe + a voxel of a slot 0.76 m from a tree flew
                        to the column slot 11 m away and stayed there [X]
+    column_shape       the column of ``shape_switching``: ``"rigid"``, slots ``index`` x spacing behind the leader along
+                       its heading; ``"trail"``, places that far behind it along its broadcast trail, followed as a
+                       path (``FusionExpert._file_place``), and the leader's pace (``leader_pace="trail"``) lets each
+                       follower lag that far along the trail. At a dog-leg's door the leader turns a quarter turn just
+                       past it, and the rigid column swung with its heading into the wall beside the door [X]
     astar_layer        "passable": a raster cell blocks only where no free vertical gap is left in the
                        altitude band (the fusion controller may climb); "band": any obstacle at the
                        formation altitude blocks (planar controllers) [X]
@@ -274,6 +280,7 @@ class ExpertConfig(Config):
     neighbour_prediction: bool = True
     shape_switching: bool = True
     column_at_goal: bool = False
+    column_shape: str = "trail"
     astar_layer: str = "passable"
     dwa_map_level: int = 0
     replan_check_period: float = 0.5
@@ -376,6 +383,7 @@ class ExpertConfig(Config):
         "rejoin": one_of(REJOIN_MODES),
         "park_heading": one_of(PARK_HEADINGS),
         "leader_pace": one_of(LEADER_PACES),
+        "column_shape": one_of(COLUMN_SHAPES),
         "dwa_map_level": integer(0, 4),
         "debounce": integer(1, 100),
         "trail_window": integer(1),

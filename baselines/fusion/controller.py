@@ -32,7 +32,7 @@ from ..vfh3d import VFHPlanner
 from .config import ExpertConfig
 from .kernels import (clear_turn_radius, closest_approach_of, columns_without_gap, gap_altitude_kernel, in_sphere,
                       live_within, mark_cells, open_level_way, predicted_movers, segment_clear, slot_errors,
-                      surface_clearance, trail_lags)
+                      surface_clearance, trail_arc, trail_lags, trail_points)
 from .rules import (RULES, Command, Cycle, bearing_error, braking_share, clamp, drift_persistence, fence_clearance,
                     gust_speed, leader_parked, rest_standoff, station_keep, wind_estimate, wind_margin)
 
@@ -47,7 +47,7 @@ class _UAVMemory(PlannerMemory):
     on_path: bool = False
     last_plan_time: float = -1e9
     last_check_time: float = -1e9
-    trail: list = field(default_factory=list)
+    trail: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))   # the leader's broadcast positions
     trail_progress: int = 0
     pace_trail: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
     pace_allowed: tuple = (None, None)          # (live-follower mask bytes, their slot ranges) of ``_pace_errors``
@@ -439,7 +439,11 @@ class FusionExpert(OnboardPolicy):
         alive = view.neighbour_alive
         key = alive.tobytes()                           # the slot ranges change only when a follower is lost
         if mem.pace_allowed[0] != key:
-            mem.pace_allowed = key, np.linalg.norm(view.offsets[view.neighbour_ids[alive], :2], axis=1)
+            ids = view.neighbour_ids[alive]
+            allowed = np.linalg.norm(view.offsets[ids, :2], axis=1)
+            if _files(cfg):                             # a follower may file along the trail, index x spacing back
+                allowed = np.maximum(allowed, ids * view.config.formation.spacing)
+            mem.pace_allowed = key, allowed
         allowed = mem.pace_allowed[1]
         lags = trail_lags(trail, pos, view.neighbour_states[alive, :2], allowed)
         return np.minimum(errors, lags)
@@ -602,8 +606,15 @@ class FusionExpert(OnboardPolicy):
         lookahead = np.array([x + ((float(goal[0]) - x) + k_hx), y + ((float(goal[1]) - y) + k_hy)])  # a_j = goal - p
         slot_now = lead[:2] + turned_now[row]
         trail = mem.trail
-        if cfg.rejoin == "trail" and (not trail or np.hypot(*(lead[:2] - trail[-1])) >= cfg.trail_spacing):
-            trail.append(lead[:2].copy())
+        if (cfg.rejoin == "trail" or _files(cfg)) and (
+                not len(trail) or math.hypot(lead[0] - trail[-1, 0], lead[1] - trail[-1, 1]) >= cfg.trail_spacing):
+            mem.trail = trail = np.concatenate([trail, lead[None, :2]])
+        e_file = None
+        if column and _files(cfg) and len(trail):
+            filed = self._file_place(view, mem, cfg, lead, lead_moving)
+            if filed is not None:
+                goal, lookahead, slot_now, e_file = filed
+                slot_hidden = False
         far = slot_hidden or math.hypot(slot_now[0] - view.state[0], slot_now[1] - view.state[1]) > cfg.rejoin_distance
         mem.on_path = False
         if far and cfg.rejoin == "astar":
@@ -622,7 +633,7 @@ class FusionExpert(OnboardPolicy):
             if path.length - path._arc[path.progress] > cfg.astar.lookahead:   # not yet at the trail's end
                 mem.on_path = True
                 return guide, guide, None, None
-        e_par = float((slot_now - view.state[:2]) @ heading_l)
+        e_par = float((slot_now - view.state[:2]) @ heading_l) if e_file is None else e_file
         if not lead_moving:                                     # closing on a parked slot, from any side
             to_slot = slot_now - view.state[:2]
             e_par = float(np.linalg.norm(to_slot)) * max(0.0, math.cos(bearing_error(view.state, to_slot)))
@@ -631,6 +642,23 @@ class FusionExpert(OnboardPolicy):
         v_cap = _slot_brake_cap(lead[V], math.hypot(slot_now[0] - view.state[0], slot_now[1] - view.state[1]),
                                 lim.a_max) if cfg.slot_brake and arriving else None
         return goal, lookahead, v_cap, v_ref
+
+    @staticmethod
+    def _file_place(view, mem: _UAVMemory, cfg: ExpertConfig, lead: np.ndarray, lead_moving: bool):
+        """[X] ``column_shape="trail"``: the column slot (g7) as a place in single file on the leader's broadcast
+        trail, ``index`` x spacing behind the leader along it: (goal, lookahead, place now, e_par), or None while
+        the trail is shorter than that. The goal is the trail's point ``astar.lookahead`` ahead of the follower's
+        own nearest point on it (path following: round a door's corner, not across it), but no nearer the leader
+        than where its place will be in T_p (``k_h`` before that while the leader flies); e_par, its lag behind its
+        place along the trail, sets the (g2) speed reference."""
+        back = view.index * view.config.formation.spacing
+        ahead = float(lead[V]) * cfg.dwa.T_p
+        own = trail_arc(mem.trail, lead[:2], view.state[:2], back + cfg.rejoin_distance + ahead)
+        aim = max(own - cfg.astar.lookahead, back - ahead - (cfg.k_h if lead_moving else 0.0), 0.0)
+        points, reached = trail_points(mem.trail, lead[:2], np.array([back, aim, max(0.0, aim - cfg.k_h)]))
+        if not reached:
+            return None
+        return points[1], points[2], points[0], own - back
 
     # ------------------------------------------------------------------ neighbours (g6)
     def _neighbours(self, view, cfg: ExpertConfig):
@@ -790,6 +818,11 @@ def _rotated(psi: float, offsets: np.ndarray) -> np.ndarray:
     """Body-frame ``offsets`` (K, 3) turned by the heading ``psi`` into world-frame x, y (K, 2): the slots of
     ``slot_positions`` about the origin, to which the caller adds the (predicted) leader position."""
     return slot_positions(_ORIGIN, psi, offsets, 0.0)[:, :2]
+
+
+def _files(cfg: ExpertConfig) -> bool:
+    """Whether the column fallback of (g7) files along the leader's trail (``column_shape="trail"``)."""
+    return cfg.shape_switching and cfg.column_shape == "trail"
 
 
 def _column_offsets(offsets: np.ndarray, spacing: float) -> np.ndarray:

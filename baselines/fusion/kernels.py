@@ -328,6 +328,55 @@ def trail_lags(trail, leader_xy, followers_xy, allowed):
 
 
 @numba.njit(cache=True)
+def trail_arc(trail, leader_xy, p, limit):
+    """[X] ``column_shape="trail"``: where the point ``p`` lies along the leader's trail (points (M, 2), oldest first,
+    the leader at ``leader_xy`` past the last): the arc length from the leader back to the trail's point nearest
+    ``p``, of the part within ``limit`` m of the leader (the newest nearest where several tie)."""
+    arc, best, best_arc = 0.0, np.inf, 0.0
+    ax, ay = leader_xy[0], leader_xy[1]
+    for j in range(trail.shape[0] - 1, -1, -1):         # segments newest first, from the leader back along the trail
+        if arc > limit:
+            break
+        bx, by = trail[j, 0], trail[j, 1]
+        dx, dy = bx - ax, by - ay
+        length = math.hypot(dx, dy)
+        if length > 0.0:
+            u = min(1.0, max(0.0, ((p[0] - ax) * dx + (p[1] - ay) * dy) / (length * length)))
+            d = math.hypot(p[0] - (ax + u * dx), p[1] - (ay + u * dy))
+            if d < best:
+                best, best_arc = d, arc + u * length
+        arc += length
+        ax, ay = bx, by
+    return best_arc
+
+
+@numba.njit(cache=True)
+def trail_points(trail, leader_xy, arcs):
+    """The points (K, 2) ``arcs`` (K,) m behind the leader along its trail (``trail_arc``'s frame); an arc beyond the
+    trail's oldest point gives that point. Also returns whether the trail reaches the largest arc."""
+    out = np.empty((arcs.shape[0], 2))
+    done = np.zeros(arcs.shape[0], np.bool_)
+    arc = 0.0
+    ax, ay = leader_xy[0], leader_xy[1]
+    for j in range(trail.shape[0] - 1, -1, -1):
+        bx, by = trail[j, 0], trail[j, 1]
+        dx, dy = bx - ax, by - ay
+        length = math.hypot(dx, dy)
+        if length > 0.0:
+            for k in range(arcs.shape[0]):
+                if not done[k] and arcs[k] <= arc + length:
+                    f = max(0.0, arcs[k] - arc) / length
+                    out[k, 0], out[k, 1] = ax + f * dx, ay + f * dy
+                    done[k] = True
+        arc += length
+        ax, ay = bx, by
+    for k in range(arcs.shape[0]):
+        if not done[k]:
+            out[k, 0], out[k, 1] = ax, ay
+    return out, arc >= arcs.max()
+
+
+@numba.njit(cache=True)
 def slot_errors(x, y, cos_psi, sin_psi, offsets, ids, states, alive):
     """Horizontal distances of the live rows of ``states`` (K, 7; ``alive``) to their slots, the body-frame
     ``offsets`` rows ``ids`` turned by a heading with cosine and sine ``cos_psi``, ``sin_psi`` (numpy's, as
