@@ -90,10 +90,25 @@ def test_dock_turn_of_a_follower_needs_a_parked_leader_and_its_own_rest():
     cmd = Command(0.0, 0.0, 0.0)
     dock_turn(cmd, cycle(view(leader_speed=0.0, **follower), goal=(-0.5, 2.0)))
     assert cmd.turning and cmd.w == W_MAX
-    for moving in (dict(leader_speed=0.5), dict(leader_speed=0.0, state=(0, 0, 3, 0, 0.3, 0, 0))):
+    for moving in (dict(leader_speed=0.5), dict(leader_speed=0.0, state=(0, 0, 3, 0, 0.4, 0, 0))):
         cmd = Command(0.0, 0.0, 0.0)
         dock_turn(cmd, cycle(view(**moving, **follower), goal=(-0.5, 2.0)))
         assert not cmd.turning
+
+
+def test_dock_turn_stops_a_creeping_follower_circling_its_slot():
+    """A follower creeping at 0.1 m/s round a parked slot 0.7 m away, 80 degrees off its nose (forest seed 0 circled
+    so for 25 s): it stops within e_f / 2 at a_max (0.1^2 < 0.2 x 0.5), so it turns in place; at 0.4 m/s it would not
+    stop within e_f / 2 and DWA keeps its arc; with ``dock_turn_speed="stopped"`` only a follower at rest turns."""
+    follower = dict(is_leader=False, goal=(30.0, 0.0, 3.0), leader_speed=0.0)
+    slot = (0.7 * math.cos(math.radians(-80.0)), 0.7 * math.sin(math.radians(-80.0)))
+    for speed, cfg, turns in ((0.1, CFG, True), (0.31, CFG, True), (0.33, CFG, False),
+                              (0.1, CFG.replace(dock_turn_speed="stopped"), False)):
+        cmd = Command(speed, 0.0, 0.0)
+        dock_turn(cmd, cycle(view(state=(0, 0, 3, 0, speed, 0, 0), **follower), goal=slot, cfg=cfg))
+        assert cmd.turning == turns
+        if turns:
+            assert cmd.v == 0.0 and cmd.w == -W_MAX
 
 
 def test_reverse_turn_turns_toward_a_lookahead_behind_unless_already_turning():

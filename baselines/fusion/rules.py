@@ -73,12 +73,14 @@ def braking_fallback(cmd: Command, c: Cycle) -> None:
 
 
 def dock_turn(cmd: Command, c: Cycle) -> None:
-    """[X] ``dock_turn_angle``, ``dock_radius``: a UAV closing on a fixed target (the leader within
-    ``dock_radius`` of the goal; a slow follower of a parked leader, at least e_f / 2 from its slot) that lies
-    more than ``dock_turn_angle`` off its nose turns in place toward it."""
+    """[X] ``dock_turn_angle``, ``dock_radius``, ``dock_turn_speed``: a UAV closing on a fixed target (the leader
+    within ``dock_radius`` of the goal; a slow follower of a parked leader, at least e_f / 2 from its slot) that
+    lies more than ``dock_turn_angle`` off its nose turns in place toward it. A follower is slow below
+    ``leader_stopped_speed`` (``dock_turn_speed="stopped"``) or when it stops within e_f / 2 at a_max
+    (``"stop"``: v^2 < a_max e_f)."""
     view, cfg = c.view, c.cfg
     s = view.state
-    if not view.is_leader and not (leader_parked(view, cfg) and s[V] < cfg.leader_stopped_speed):
+    if not view.is_leader and not (leader_parked(view, cfg) and _docking_slow(s[V], view, cfg)):
         return
     to_goal = (view.goal[:2] if view.is_leader else c.goal) - s[:2]
     if view.is_leader:
@@ -87,6 +89,13 @@ def dock_turn(cmd: Command, c: Cycle) -> None:
         docking = math.hypot(to_goal[0], to_goal[1]) >= view.config.formation.e_f / 2
     if docking and abs(bearing_error(s, to_goal)) > cfg.dock_turn_angle:
         cmd.v, cmd.w, cmd.turning = 0.0, turn_toward(s, to_goal, view.limits.w_max), True
+
+
+def _docking_slow(v: float, view, cfg) -> bool:
+    """``dock_turn``'s test of a follower's speed ``v`` (``dock_turn_speed``)."""
+    if cfg.dock_turn_speed == "stopped":
+        return v < cfg.leader_stopped_speed
+    return v * v < view.limits.a_max * view.config.formation.e_f
 
 
 def dock_approach(cmd: Command, c: Cycle) -> None:
