@@ -104,3 +104,24 @@ def test_a_follower_held_off_the_trail_still_slows_the_leader():
 def test_leader_pace_is_validated():
     with pytest.raises(ValueError, match="leader_pace"):
         ExpertConfig(leader_pace="range")
+
+
+def test_a_follower_filing_at_its_place_on_the_trail_does_not_slow_the_leader():
+    """``column_shape="trail"``: a wedge follower (index 2, slot (-2, 2), 2.8 m from the leader) filing in single file
+    sits 2 x spacing = 4 m behind the leader along its trail. Round the leader's bend that reads no lag; with the
+    rigid column its slot's 2.8 m range stands, and the 1.2 m beyond it paces the leader."""
+    follower = [[6.0, 0.0], [6.0, 0.0]]                     # index 1 and 2 both at the point 4 m back
+
+    def errors(shape: str) -> np.ndarray:
+        cfg = replace(ExpertConfig(), leader_pace="trail", column_shape=shape)
+        mem = _UAVMemory()
+        for x in np.arange(0.0, 10.0, 0.25):
+            view = pace_view(follower, x, 0.0)
+            view.offsets = np.array([[0.0, 0.0, 0.0], [-2.0, -2.0, 0.0], [-2.0, 2.0, 0.0]])
+            FusionExpert._pace_errors(view, mem, cfg)
+        view = pace_view(follower, 10.0, math.pi / 2)
+        view.offsets = np.array([[0.0, 0.0, 0.0], [-2.0, -2.0, 0.0], [-2.0, 2.0, 0.0]])
+        return FusionExpert._pace_errors(view, mem, cfg)
+
+    assert errors("trail")[1] == pytest.approx(0.0)
+    assert errors("rigid")[1] == pytest.approx(4.0 - math.hypot(2.0, 2.0))
