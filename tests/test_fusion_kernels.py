@@ -2,11 +2,12 @@
 snapshots depend on it), and the local-voxel answer to "is this slot blocked" equals the map's query."""
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 
-from baselines.fusion import FusionExpert
-from baselines.fusion.controller import _occupied_within
+from baselines.fusion import ExpertConfig, FusionExpert
+from baselines.fusion.controller import _UAVMemory, _occupied_within
 from baselines.fusion.kernels import (closest_approach, closest_approach_of, in_sphere, live_within, mark_cells,
                                       nearest_live, predicted_movers, slot_errors, trail_arc, trail_points)
 from uavform_env import parallel_env
@@ -150,11 +151,6 @@ def test_trail_arc_and_points_known_answers():
 def test_file_place_follows_the_trail_round_a_corner():
     """A follower (index 1) in single file behind a leader that turned a corner: its place lies on the leader's trail,
     its goal ahead of it along the trail (not across the corner), and its lag is its arc length behind its place."""
-    from types import SimpleNamespace
-
-    from baselines.fusion import ExpertConfig
-    from baselines.fusion.controller import _UAVMemory
-
     cfg = ExpertConfig()
     trail = np.array([[-6.0, 0.0], [-4.0, 0.0], [-2.0, 0.0], [0.0, 0.0], [0.0, 2.0]])   # east, then north
     mem = _UAVMemory(trail=trail)

@@ -51,7 +51,7 @@ class ExpertConfig(Config):
                        by the cosine of its bearing error (0 beyond 90 degrees): a unicycle that keeps its
                        speed while its target is abeam orbits the target instead of reaching it; its target
                        point is then the slot itself, without the ``k_h`` lead along the leader's heading [X]
-    dock_turn_angle    a follower of a parked leader that is itself below ``leader_stopped_speed`` turns in
+    dock_turn_angle    a slow follower of a parked leader (``dock_turn_speed``) turns in
                        place toward its target when that lies more than this far off its nose and at least
                        e_f / 2 away; DWA's rotation cost and sum-normalised heading term otherwise hold it at
                        rest there (w = 0 wins at v = 0) [X]

@@ -91,13 +91,6 @@ def dock_turn(cmd: Command, c: Cycle) -> None:
         cmd.v, cmd.w, cmd.turning = 0.0, turn_toward(s, to_goal, view.limits.w_max), True
 
 
-def _docking_slow(v: float, view, cfg) -> bool:
-    """``dock_turn``'s test of a follower's speed ``v`` (``dock_turn_speed``)."""
-    if cfg.dock_turn_speed == "stopped":
-        return v < cfg.leader_stopped_speed
-    return v * v < view.limits.a_max * view.config.formation.e_f
-
-
 def dock_approach(cmd: Command, c: Cycle) -> None:
     """[X] ``dock_approach``, ``approach_radius``: the leader on its final approach (``Cycle.docking``: within
     ``approach_radius`` of its goal along a segment clear of its own map by r_uav + r_safe), in an estimated wind
@@ -350,6 +343,13 @@ def drift_persistence(lim, horizon: float) -> float:
     if tau == 0.0 or horizon == math.inf:
         return 0.0
     return tau / horizon * -math.expm1(-horizon / tau)
+
+
+def _docking_slow(v: float, view, cfg) -> bool:
+    """``dock_turn``'s test of a follower's speed ``v`` (``dock_turn_speed``)."""
+    if cfg.dock_turn_speed == "stopped":
+        return v < cfg.leader_stopped_speed
+    return v * v < view.limits.a_max * view.config.formation.e_f
 
 
 def clamp(x: float, lo: float, hi: float) -> float:
