@@ -54,6 +54,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=40)
     args = parser.parse_args()
+    if args.seeds < 1:
+        parser.error(f"--seeds {args.seeds}: expected at least 1")
     print("| preset | airframe | " + " | ".join(f"drift after {t:g} s: median / p90 (m)" for t in TIMES)
           + f" | drifted apart after {TIMES[-1]:g} s (m) |")
     print("|---|---|" + "---|" * (len(TIMES) + 1))

@@ -53,7 +53,7 @@ def hold(preset: str, seed: int, seconds: float, mode: str, uav: UAVLimits) -> t
         wind_estimate(view, mem, cfg)
         if mode == "oracle":
             mem.wind = env.drift[0, :2].copy()      # the drift of the last step, exactly
-        cmd = station_keep(view, mem, cfg, start, 0.0) if mode != "hover" else SimpleNamespace(v=0.0, w=0.0)
+        cmd = station_keep(view, mem, cfg, start, 0.0, math.inf) if mode != "hover" else SimpleNamespace(v=0.0, w=0.0)
         penv.step({"uav_0": commands_to_actions(np.array([cmd.v, cmd.w, 0.0]), lim)})
         dist.append(float(np.hypot(*(env.states[0, :2] - start))))
         gust.append(gust_speed(mem))
@@ -94,6 +94,12 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--seconds", type=float, default=60.0)
     args = parser.parse_args()
+    warm_up = 5.0                                   # s: the p99 and RMS columns leave out each flight's first seconds
+    if args.seeds < 1:
+        parser.error(f"--seeds {args.seeds}: expected at least 1")
+    if not args.seconds > warm_up:
+        parser.error(f"--seconds {args.seconds:g}: expected more than the {warm_up:g} s warm-up the p99 and RMS "
+                     "columns leave out")
     cfg = ExpertConfig()
     v_max = UAVLimits().v_max
     print(f"| preset | airframe | wind > v_max ({v_max:g} m/s), share of time | drift > v_max | drift > 0.5 v_max | "
@@ -101,7 +107,7 @@ def main() -> None:
           "estimate | unicycle, exact drift | ideal holonomic holder | distance from the point, p99 of all steps (m): "
           "unicycle, exact drift / hovering at v = 0 | median RMS drift (m/s) | p99 / RMS drift (s) |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
-    warm = int(round(5.0 / UAVLimits().dt))
+    warm = int(round(warm_up / UAVLimits().dt))
     for preset in ("breeze", "gusty"):
         for label, uav in AIRFRAMES:
             own = [hold(preset, s, args.seconds, "own", uav)[0].max() for s in range(args.seeds)]
