@@ -10,7 +10,8 @@ seeds: wind 0 is the episode's own seed (its flight is the suite's, bit for bit)
 ``SeedSequence([episode.seed, k])`` draws. The policy is the expert (``FusionExpert``) with the ``--set`` overrides of
 its ``ExpertConfig`` fields (``part.name`` for a field of its ``dwa``, ``vfh`` or ``astar`` config). Printed: flights,
 flights with a collision, successes, the median over flights of the formation error's RMS (``episode_metrics``), and
-per episode the outcomes of its winds (s success, t time-out, c crash); ``--out`` keeps one JSON line per flight.
+per episode the outcomes of its winds (s success, t time-out, c crash); ``--out`` keeps one JSON line per flight
+(written whole or not at all), which ``benchmarks/compare_flights.py`` pairs with another run's flight by flight.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ import numpy as np
 
 from baselines.fusion import ExpertConfig
 from uavform_env.evaluation.suites import Episode, load_suite
+from uavform_env.files import atomic_write_text
 from uavform_env.parallel import imap_unordered
 
 MARKS = {"success": "s", "timeout": "t"}
@@ -104,8 +106,7 @@ def main(argv=None) -> int:
     calls = [(e.to_dict(), k, overrides) for e in episodes for k in range(args.winds)]
     records = sorted(imap_unordered(fly, calls, args.workers), key=lambda r: (r["episode"], r["wind"]))
     if args.out:
-        with open(args.out, "w") as f:
-            f.writelines(json.dumps(r) + "\n" for r in records)
+        atomic_write_text(args.out, "".join(json.dumps(r) + "\n" for r in records))
     crashed = [r for r in records if r["outcome"].startswith("crash")]
     success = [r for r in records if r["outcome"] == "success"]
     errors = [r["formation_error_rms"] for r in records if not math.isnan(r["formation_error_rms"])]

@@ -1,21 +1,29 @@
-"""The wind benchmarks in benchmarks/ run, with tiny settings: they fly the expert's station keeping and wind
-estimate (``baselines.fusion.rules``) outside the controller, so a change of those rules' signatures must show here
-(session 22 found ``wind_authority.py`` broken since ``station_keep`` took a clearance)."""
+"""Scripts of benchmarks/ that tests can afford: the wind benchmarks with tiny settings (they fly the expert's station
+keeping and wind estimate, ``baselines.fusion.rules``, outside the controller, so a change of those rules' signatures
+must show here: session 22 found ``wind_authority.py`` broken since ``station_keep`` took a clearance), and the paired
+comparison of flight records (``compare_flights.py``) against scipy's binomial test."""
 
 import importlib.util
+import json
 import sys
 from pathlib import Path
 
 import pytest
+from scipy.stats import binomtest
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 
 
-def _run(name, argv, monkeypatch):
+def _module(name, monkeypatch):
     monkeypatch.syspath_prepend(str(BENCHMARKS))        # as a script: its siblings import by name
     spec = importlib.util.spec_from_file_location(f"benchmark_{name}", BENCHMARKS / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
+    return module
+
+
+def _run(name, argv, monkeypatch):
+    module = _module(name, monkeypatch)
     monkeypatch.setattr(sys, "argv", [f"{name}.py", *argv])
     module.main()
 
@@ -46,3 +54,54 @@ def test_wind_benchmarks_refuse_bad_settings_in_one_line(name, argv, flag, monke
     assert exit_.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith(f"{name}.py: error: {flag}: expected")
+
+
+@pytest.mark.parametrize("b, c", [(0, 0), (0, 1), (4, 5), (8, 1), (3, 11), (0, 12), (20, 7), (30, 30)])
+def test_mcnemar_p_is_scipys_exact_two_sided_binomial_test(b, c, monkeypatch):
+    p = _module("compare_flights", monkeypatch).mcnemar_p(b, c)
+    assert p == (1.0 if b + c == 0 else pytest.approx(binomtest(min(b, c), b + c, 0.5).pvalue, rel=1e-12))
+
+
+def _flights(path, outcomes, rms=3.0):
+    """Write gust_seeds-style records: ``outcomes`` maps (episode key, wind) to (outcome, steps)."""
+    path.write_text("".join(json.dumps({"episode": k, "wind": w, "outcome": o, "steps": n, "formation_error_rms": rms,
+                                        "detail": ""}) + "\n" for (k, w), (o, n) in outcomes.items()))
+    return str(path)
+
+
+def test_compare_flights_pairs_by_episode_and_wind_and_counts_the_discordant_pairs(tmp_path, monkeypatch, capsys):
+    cf = _module("compare_flights", monkeypatch)
+    calm, gusty = "forest@2/-/n4/line/s1/c900/sp2", "dog-leg@1/easy/n2/line/s2/c900/sp2/gusty"
+    base = {(calm, 0): ("success", 500), (calm, 1): ("timeout", 900), (gusty, 0): ("crash-obstacle", 300),
+            (gusty, 1): ("success", 700), (gusty, 2): ("timeout", 900)}
+    new = {(calm, 0): ("success", 480), (calm, 1): ("success", 850), (gusty, 0): ("timeout", 900),
+           (gusty, 1): ("success", 690), ("urban@2/-/n3/line/s9/c900/sp2", 0): ("success", 400)}
+    rows = cf.compare(cf.load([_flights(tmp_path / "a.jsonl", base)]),
+                      cf.load([_flights(tmp_path / "b.jsonl", new, rms=2.5)]))
+    by = {r["preset"]: r for r in rows}
+    assert [r["preset"] for r in rows] == ["calm", "gusty", "all"]
+    assert by["calm"]["success"] == (1, 2, 0, 1, 1.0) and by["calm"]["steps_change"] == -20.0
+    assert by["gusty"]["flights"] == 2 and by["gusty"]["collision"] == (1, 0, 1, 0, 1.0)
+    assert by["all"]["success"][:4] == (2, 3, 0, 1) and by["all"]["rms_change"] == pytest.approx(-0.5)
+    assert by["all"]["steps_change"] == pytest.approx(-15.0) and by["all"]["both_succeed"] == 2
+    assert cf.main([str(tmp_path / "a.jsonl"), "--against", str(tmp_path / "b.jsonl")]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("4 paired flights (2 without a partner, left out)")
+    assert f"{calm} wind 1: timeout -> success" in out and f"{gusty} wind 0: crash-obstacle -> timeout" in out
+
+
+def test_compare_flights_refuses_bad_files_in_one_line(tmp_path, monkeypatch, capsys):
+    cf = _module("compare_flights", monkeypatch)
+    good = _flights(tmp_path / "a.jsonl", {("forest@2/-/n4/line/s1/c900/sp2", 0): ("success", 500)})
+    twice = tmp_path / "twice.jsonl"
+    twice.write_text(open(good).read() * 2)
+    other = _flights(tmp_path / "o.jsonl", {("urban@2/-/n3/line/s9/c900/sp2", 0): ("success", 400)})
+    torn = tmp_path / "torn.jsonl"
+    torn.write_text('{"episode": "x", "wind": 0}\n')
+    for argv, message in (([str(tmp_path / "missing.jsonl"), "--against", good], "missing.jsonl: no such file"),
+                          ([str(twice), "--against", good], "appears twice on one side"),
+                          ([good, "--against", other], "no flight of these files flew"),
+                          ([good, "--against", str(torn)], "line 1: corrupt flight record")):
+        assert cf.main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("error: ") and message in err[0]
