@@ -1,13 +1,15 @@
 """A fair judge of a wind rule: each windy episode of a suite flown under several wind seeds (issue 13, gusts).
 
-    python benchmarks/gust_seeds.py --suite v1-dev --wind gusty --winds 4 [--set wind_margin=2.0 dwa.brake_share=1]
+    python benchmarks/gust_seeds.py --suite v1-dev --wind gusty --winds 4 [--first-wind 0]
+                                    [--set wind_margin=2.0 dwa.brake_share=1]
                                     [--workers 2] [--only forest@2 corridor@2] [--out flights.jsonl]
 
 A suite fixes each episode's obstacle layout and its wind by one seed, so a slice of single flights swings by a
 few crashes from any change of the flight (session 8: +-2 crashes of 28). Here the layout stays the episode's
 (``FormationEnv(layout_seed=episode.seed)``) and the reset seed, which draws the gust field, runs over ``--winds``
 seeds: wind 0 is the episode's own seed (its flight is the suite's, bit for bit), wind k > 0 the seed
-``SeedSequence([episode.seed, k])`` draws. The policy is the expert (``FusionExpert``) with the ``--set`` overrides of
+``SeedSequence([episode.seed, k])`` draws; ``--first-wind k`` starts at wind k, so a later run adds winds to an
+earlier one (``compare_flights.py`` reads both files as one side). The policy is the expert (``FusionExpert``) with the ``--set`` overrides of
 its ``ExpertConfig`` fields (``part.name`` for a field of its ``dwa``, ``vfh`` or ``astar`` config). Printed: flights,
 flights with a collision, successes, the median over flights of the formation error's RMS (``episode_metrics``), and
 per episode the outcomes of its winds (s success, t time-out, c crash); ``--out`` keeps one JSON line per flight
@@ -87,6 +89,8 @@ def main(argv=None) -> int:
     parser.add_argument("--wind", default="gusty", help="keep the episodes of this disturbance preset (default gusty)")
     parser.add_argument("--only", nargs="*", default=None, help="keep the episodes of these scenarios (e.g. forest@2)")
     parser.add_argument("--winds", type=int, default=4, help="wind seeds per episode (default 4)")
+    parser.add_argument("--first-wind", type=int, default=0,
+                        help="fly winds first-wind .. first-wind + winds - 1 (default 0: the episode's own first)")
     parser.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE", help="ExpertConfig overrides")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--out", default=None, help="write one JSON line per flight here")
@@ -94,6 +98,8 @@ def main(argv=None) -> int:
     try:
         if args.winds < 1 or args.workers < 1:
             raise ValueError("--winds and --workers: expected at least 1")
+        if args.first_wind < 0:
+            raise ValueError(f"--first-wind {args.first_wind}: expected 0 or more")
         overrides = parse_overrides(args.set)
         episodes = [e for e in load_suite(args.suite).episodes if e.wind == args.wind
                     and (args.only is None or e.scenario in args.only)]
@@ -103,7 +109,8 @@ def main(argv=None) -> int:
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    calls = [(e.to_dict(), k, overrides) for e in episodes for k in range(args.winds)]
+    winds = range(args.first_wind, args.first_wind + args.winds)
+    calls = [(e.to_dict(), k, overrides) for e in episodes for k in winds]
     records = sorted(imap_unordered(fly, calls, args.workers), key=lambda r: (r["episode"], r["wind"]))
     if args.out:
         atomic_write_text(args.out, "".join(json.dumps(r) + "\n" for r in records))
