@@ -48,9 +48,11 @@ def view(state=(0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0), is_leader=True, goal=(10.0, 
 
 
 def cycle(v, mem=None, goal=(10.0, 0.0), lookahead=(10.0, 0.0), heading_goal=(10.0, 0.0), admissible=True,
-          vfh=None, movers=np.zeros((0, 3)), cfg=CFG, obstacles=np.zeros((0, 3)), radius=0.0, docking=False):
+          vfh=None, movers=np.zeros((0, 3)), cfg=CFG, obstacles=np.zeros((0, 3)), radius=0.0, docking=False,
+          dwa_v=0.0, dwa_clearance=0.0):
+    dwa = SimpleNamespace(admissible=admissible, v=dwa_v, clearance=dwa_clearance)     # DWA's choice
     return Cycle(view=v, mem=mem or _UAVMemory(), cfg=cfg, goal=np.array(goal), lookahead=np.array(lookahead),
-                 heading_goal=np.array(heading_goal), dwa=SimpleNamespace(admissible=admissible), vfh=vfh,
+                 heading_goal=np.array(heading_goal), dwa=dwa, vfh=vfh,
                  movers_pos=movers, movers_vel=np.zeros_like(movers), obstacles=np.asarray(obstacles, dtype=float),
                  radii=np.full(len(obstacles), radius), docking=docking)
 
@@ -445,6 +447,27 @@ def test_drift_guard_moves_a_hovering_uav_off_an_obstacle_in_gusts_even_when_dwa
     calm = Command(0.0, W_MAX, 0.0)
     drift_guard(calm, cycle(view(), _UAVMemory(), cfg=cfg, **near))    # still air: no gust standoff
     assert (calm.v, calm.w) == (0.0, W_MAX)
+
+
+def test_drift_guard_leaves_a_hovering_uav_to_dwa_accelerating_it_along_a_rollout_no_nearer():
+    """``guard_dwa_exit``: the obstacle point ahead (the way away behind the nose), DWA speeding the UAV up along a
+    rollout at least as clear as it is now: the command stands; a rollout nearer the point, DWA turning in place, or
+    the switch off: the guard turns the UAV in place toward the way away."""
+    gusty = _UAVMemory(drift_ms=0.25)                              # RMS drift 0.5 m/s: gust standoff 0.5 m
+    cfg = ExpertConfig(guard_gust_time=1.0, guard_hover_speed=0.1, gust_allowance=0.0)
+    ahead = dict(admissible=True, obstacles=[[0.8, 0.0, 3.0]], radius=0.1)    # 0.4 m clearance, ahead
+    leaving = Command(0.02, W_MAX, 0.0)
+    drift_guard(leaving, cycle(view(), gusty, cfg=cfg, dwa_v=0.02, dwa_clearance=0.45, **ahead))
+    assert (leaving.v, leaving.w) == (0.02, W_MAX)
+    off = cfg.replace(guard_dwa_exit=False)
+    for dwa_v, dwa_clearance, guard in ((0.02, 0.35, cfg), (0.0, 0.5, cfg), (0.02, 0.5, off)):
+        cmd = Command(dwa_v, W_MAX / 2, 0.0)
+        drift_guard(cmd, cycle(view(), gusty, cfg=guard, dwa_v=dwa_v, dwa_clearance=dwa_clearance, **ahead))
+        assert cmd.v == 0.0 and abs(cmd.w) == W_MAX                # turned in place toward the way away
+    beside = Command(0.02, 0.0, 0.0)                               # the point behind: the guard flies it off
+    drift_guard(beside, cycle(view(), gusty, cfg=cfg, dwa_v=0.02, dwa_clearance=0.5,
+                              **{**ahead, "obstacles": [[-0.8, 0.0, 3.0]]}))
+    assert beside.v == pytest.approx(cfg.guard_speed) and beside.w == 0.0
 
 
 def test_gust_standoff_leaves_out_what_r_safe_covers():

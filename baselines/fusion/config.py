@@ -255,6 +255,9 @@ class ExpertConfig(Config):
                        it, flies away from it (``rules.drift_guard``) even when DWA has admissible samples: DWA
                        chose to turn in place at v = 0, and the gusts carried the stopped UAV into the obstacle
                        (0 switches it off) [X]
+    guard_dwa_exit     such a hovering UAV whose nose points away from the way off the obstacle keeps the command
+                       when DWA accelerates it along a rollout at least as clear as it is now (``rules.drift_guard``);
+                       False: the guard turns it in place first, as before session 22 [X]
     dwa                the IDWA of spec (c) with the approach speed profile, r_goal 0.1 m, ``dist_cap`` 0.5 m and
                        E11's rotation cost on the change of the turn rate (``rotation_mode="delta"``): the cost on
                        the turn rate itself kept a leader in open space from turning toward a goal off its nose [X]
@@ -355,6 +358,7 @@ class ExpertConfig(Config):
     guard_speed: float = 0.3
     guard_gust_time: float = 3.0
     guard_hover_speed: float = 0.1
+    guard_dwa_exit: bool = True
     park_turn: bool = True
     park_heading: str = "followers"
     # -- no frozen followers (issue 13, session 8 "s8slots")
@@ -384,7 +388,7 @@ class ExpertConfig(Config):
                                       "park_turn", "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap",
                                       "pursuit_clear", "rejoin_hidden", "final_approach_free", "wind_drift",
                                       "dock_approach", "explore_unknown", "route_turn_cost", "fence_margin",
-                                      "solo_full_speed")},
+                                      "solo_full_speed", "guard_dwa_exit")},
         "astar_layer": one_of(ASTAR_LAYERS),
         "rejoin": one_of(REJOIN_MODES),
         "park_heading": one_of(PARK_HEADINGS),

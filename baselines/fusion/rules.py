@@ -138,7 +138,12 @@ def drift_guard(cmd: Command, c: Cycle) -> None:
     [X] ``guard_gust_time``, ``guard_hover_speed``: in gusts the guard's clearance grows by ``guard_gust_time`` x the
     RMS drift (``gust_speed``), less what r_safe covers (``gust_standoff``); a UAV slower than ``guard_hover_speed``
     within that gust standoff alone is guarded even when DWA has admissible samples (a UAV DWA turns in place at
-    v = 0 cannot dodge the next gust)."""
+    v = 0 cannot dodge the next gust).
+    [X] ``guard_dwa_exit``: such a hovering UAV whose nose points more than 90 degrees from the way away (the guard
+    would first turn it in place) is left to the command so far when DWA accelerates it (v above its speed now)
+    along a rollout whose clearance is at least its clearance now: turning in place toward the way away from a
+    nearest point whose bearing changed with every gust excursion held a rejoining follower at v = 0 for 30 s while
+    DWA asked for more speed each cycle (forest s200071 gusty)."""
     cfg, view = c.cfg, c.view
     s, lim = view.state, view.limits
     standoff = gust_standoff(c.mem, cfg, cfg.guard_gust_time, lim.r_safe)
@@ -156,6 +161,9 @@ def drift_guard(cmd: Command, c: Cycle) -> None:
     if math.hypot(away[0], away[1]) <= abs(s[2] - c.obstacles[m, 2]):
         return
     err = bearing_error(s, away)
+    if (cfg.guard_dwa_exit and c.dwa.admissible and math.cos(err) <= 0.0 and c.dwa.v > s[V]
+            and c.dwa.clearance >= gaps[m] - lim.r_uav):
+        return                                  # DWA's way out: it accelerates along a rollout no nearer
     toward = -float(c.mem.wind @ away) / math.hypot(away[0], away[1])      # wind component toward the point
     speed = min(lim.v_max, cfg.guard_speed + max(0.0, toward))
     cmd.v, cmd.w = speed * max(0.0, math.cos(err)), turn_toward(s, away, lim.w_max)
