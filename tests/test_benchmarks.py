@@ -1,7 +1,9 @@
-"""Scripts of benchmarks/ that tests can afford: the wind benchmarks with tiny settings (they fly the expert's station
-keeping and wind estimate, ``baselines.fusion.rules``, outside the controller, so a change of those rules' signatures
-must show here: session 22 found ``wind_authority.py`` broken since ``station_keep`` took a clearance), and the paired
-comparison of flight records (``compare_flights.py``) against scipy's binomial test."""
+"""Scripts of benchmarks/ that tests can afford, with tiny settings: the speed and success benchmarks and the wind
+benchmarks reach into the env's and the expert's stages (the wind ones fly ``baselines.fusion.rules``' station keeping
+and wind estimate outside the controller), so a change of those signatures must show here (session 22 found
+``wind_authority.py`` broken since ``station_keep`` took a clearance); and the paired comparison of flight records
+(``compare_flights.py``) against scipy's binomial test. ``env_step.py``, ``train_throughput.py``, ``gust_seeds.py``
+and ``dogleg_feasibility.py`` take too long for the suite."""
 
 import importlib.util
 import json
@@ -30,6 +32,18 @@ def _run(name, argv, monkeypatch):
 
 def _rows(text):
     return [line for line in text.splitlines() if line.startswith("| `")]
+
+
+@pytest.mark.parametrize("name, argv, expect", [
+    ("planner", ["--steps", "5", "--n", "2"], "expert / env (medians): "),
+    ("step_stages", ["--steps", "5", "--ns", "2", "--repeats", "1"], "microseconds per UAV-step, by stage"),
+    ("map_update", ["--uavs", "2", "--steps", "5", "--repeats", "1"], "octomap insertPointCloud"),
+    ("expert_success", ["--scenarios", "forest", "--seeds", "0", "--max-steps", "5"], "total: 0/1 success")])
+def test_speed_and_success_benchmarks_run_with_tiny_settings(name, argv, expect, monkeypatch, capsys):
+    """They time the env's and the expert's stages by name (the injected planners, the map, the kernels): a renamed
+    or re-signed stage must break a test, not the next session's measurement."""
+    _run(name, argv, monkeypatch)
+    assert expect in capsys.readouterr().out
 
 
 def test_wind_authority_tables_every_windy_preset_and_airframe(monkeypatch, capsys):
