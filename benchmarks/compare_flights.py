@@ -123,7 +123,8 @@ def main(argv=None) -> int:
     for r in compare(base, new):
         s, c = r["success"], r["collision"]
         print(f"| {r['preset']} | {r['flights']} | {s[0]} -> {s[1]} | {s[2]} / {s[3]} | {s[4]:.3f} | {c[0]} -> {c[1]} "
-              f"| {c[2]} / {c[3]} | {c[4]:.3f} | {r['rms_change']:+.2f} | {r['steps_change']:+.1f} ({r['both_succeed']}) |")
+              f"| {c[2]} / {c[3]} | {c[4]:.3f} | {r['rms_change']:+.2f} | {r['steps_change']:+.1f} "
+              f"({r['both_succeed']}) |")
     print("\n| family | successes base -> new (of flights) |\n|---|---|")
     for name, (b, n, total) in families(base, new).items():
         print(f"| {name} | {b} -> {n} ({total}) |")

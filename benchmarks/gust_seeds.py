@@ -9,11 +9,12 @@ few crashes from any change of the flight (session 8: +-2 crashes of 28). Here t
 (``FormationEnv(layout_seed=episode.seed)``) and the reset seed, which draws the gust field, runs over ``--winds``
 seeds: wind 0 is the episode's own seed (its flight is the suite's, bit for bit), wind k > 0 the seed
 ``SeedSequence([episode.seed, k])`` draws; ``--first-wind k`` starts at wind k, so a later run adds winds to an
-earlier one (``compare_flights.py`` reads both files as one side). The policy is the expert (``FusionExpert``) with the ``--set`` overrides of
-its ``ExpertConfig`` fields (``part.name`` for a field of its ``dwa``, ``vfh`` or ``astar`` config). Printed: flights,
-flights with a collision, successes, the median over flights of the formation error's RMS (``episode_metrics``), and
-per episode the outcomes of its winds (s success, t time-out, c crash); ``--out`` keeps one JSON line per flight
-(written whole or not at all), which ``benchmarks/compare_flights.py`` pairs with another run's flight by flight.
+earlier one (``compare_flights.py`` reads both files as one side). The policy is the expert (``FusionExpert``) with
+the ``--set`` overrides of its ``ExpertConfig`` fields (``part.name`` for a field of its ``dwa``, ``vfh`` or
+``astar`` config). Printed: flights, flights with a collision, successes, the median over flights of the formation
+error's RMS (``episode_metrics``), and per episode the outcomes of its winds (s success, t time-out, c crash);
+``--out`` keeps one JSON line per flight (written whole or not at all), which ``benchmarks/compare_flights.py``
+pairs with another run's flight by flight.
 """
 
 from __future__ import annotations

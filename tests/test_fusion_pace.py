@@ -115,13 +115,11 @@ def test_a_follower_filing_at_its_place_on_the_trail_does_not_slow_the_leader():
     def errors(shape: str) -> np.ndarray:
         cfg = replace(ExpertConfig(), leader_pace="trail", column_shape=shape)
         mem = _UAVMemory()
-        for x in np.arange(0.0, 10.0, 0.25):
-            view = pace_view(follower, x, 0.0)
+        for x, heading in [(x, 0.0) for x in np.arange(0.0, 10.0, 0.25)] + [(10.0, math.pi / 2)]:
+            view = pace_view(follower, x, heading)
             view.offsets = np.array([[0.0, 0.0, 0.0], [-2.0, -2.0, 0.0], [-2.0, 2.0, 0.0]])
-            FusionExpert._pace_errors(view, mem, cfg)
-        view = pace_view(follower, 10.0, math.pi / 2)
-        view.offsets = np.array([[0.0, 0.0, 0.0], [-2.0, -2.0, 0.0], [-2.0, 2.0, 0.0]])
-        return FusionExpert._pace_errors(view, mem, cfg)
+            last = FusionExpert._pace_errors(view, mem, cfg)
+        return last
 
     assert errors("trail")[1] == pytest.approx(0.0)
     assert errors("rigid")[1] == pytest.approx(4.0 - math.hypot(2.0, 2.0))

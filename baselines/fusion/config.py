@@ -55,10 +55,11 @@ class ExpertConfig(Config):
                        place toward its target when that lies more than this far off its nose and at least
                        e_f / 2 away; DWA's rotation cost and sum-normalised heading term otherwise hold it at
                        rest there (w = 0 wins at v = 0) [X]
-    dock_turn_speed    which followers ``dock_turn_angle`` turns in place: ``"stopped"``, below ``leader_stopped_speed``;
-                       ``"stop"``, those that stop within e_f / 2 at a_max (v^2 < a_max e_f, 0.32 m/s): a follower
-                       creeping at 0.06-0.1 m/s with its slot 0.7 m away and 80 degrees off its nose circled it for
-                       25 s, DWA's rotation cost holding its turn rate at a quarter of w_max (forest seed 0) [X]
+    dock_turn_speed    which followers ``dock_turn_angle`` turns in place: ``"stopped"``, below
+                       ``leader_stopped_speed``; ``"stop"``, those that stop within e_f / 2 at a_max (v^2 < a_max e_f,
+                       0.32 m/s): a follower creeping at 0.06-0.1 m/s with its slot 0.7 m away and 80 degrees off
+                       its nose circled it for 25 s, DWA's rotation cost holding its turn rate at a quarter of w_max
+                       (forest seed 0) [X]
     slot_brake         while the leader is within ``dock_radius`` of its goal (where it will stop), a follower in
                        formation (not on a rejoin path) flies no faster than it can stop, at the
                        airframe's a_max, within its horizontal distance to the slot plus the leader's own braking

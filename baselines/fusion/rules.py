@@ -155,14 +155,15 @@ def drift_guard(cmd: Command, c: Cycle) -> None:
         return
     gaps = np.linalg.norm(c.obstacles - s[:3], axis=1) - c.radii
     m = int(np.argmin(gaps))
-    if gaps[m] - lim.r_uav >= reach:
+    clearance = gaps[m] - lim.r_uav
+    if clearance >= reach:
         return
     away = s[:2] - c.obstacles[m, :2]
     if math.hypot(away[0], away[1]) <= abs(s[2] - c.obstacles[m, 2]):
         return
     err = bearing_error(s, away)
     if (cfg.guard_dwa_exit and c.dwa.admissible and math.cos(err) <= 0.0 and c.dwa.v > s[V]
-            and c.dwa.clearance >= gaps[m] - lim.r_uav):
+            and c.dwa.clearance >= clearance):
         return                                  # DWA's way out: it accelerates along a rollout no nearer
     toward = -float(c.mem.wind @ away) / math.hypot(away[0], away[1])      # wind component toward the point
     speed = min(lim.v_max, cfg.guard_speed + max(0.0, toward))
