@@ -40,8 +40,8 @@ def training_rate(make_env, copies: int, timesteps: int) -> float:
     from training.config import TrainConfig
     from training.vecenv import SharedPolicyVecEnv
 
-    torch.set_num_threads(1)                # as training.train does: torch's spinning threads would take the
-    cfg = TrainConfig(n_envs=copies)        # cores from the env copies; the minibatches of that many copies
+    torch.set_num_threads(1)                # as training.train does: its spinning threads took the copies' cores
+    cfg = TrainConfig(n_envs=copies, n_uavs=make_env.n)     # the minibatches of this many copies and UAVs
     backend = "process" if copies > 1 else "inline"
     venv = VecNormalize(VecMonitor(SharedPolicyVecEnv(make_env, copies, backend=backend)))
     try:
