@@ -45,7 +45,8 @@ def mcnemar_p(b: int, c: int) -> float:
 
 
 def preset_of(key: str) -> str:
-    """The disturbance preset an episode key names in its last field ("calm" when it names none)."""
+    """The disturbance preset an episode key names in its last field ("calm" when it names none): read for records
+    written before gust_seeds.py recorded ``Episode.wind`` as "preset" (session 23)."""
     last = key.rsplit("/", 1)[-1]
     return last if last in DISTURBANCE_PRESETS else "calm"
 
@@ -60,6 +61,8 @@ def load(paths: list[str]) -> dict:
             pair = (r["episode"], int(r["wind"]))
             if pair in flights:
                 raise ValueError(f"{path}: episode {pair[0]} wind {pair[1]} appears twice on one side")
+            r.setdefault("preset", preset_of(r["episode"]))
+            r.setdefault("scenario", r["episode"].split("/", 1)[0])
             flights[pair] = r
     return flights
 
@@ -68,7 +71,7 @@ def compare(base: dict, new: dict) -> list[dict]:
     """One row per disturbance preset and a total row over the flights both sides flew."""
     groups = defaultdict(list)
     for pair in sorted(base.keys() & new.keys()):
-        groups[preset_of(pair[0])].append(pair)
+        groups[base[pair]["preset"]].append(pair)
     order = [p for p in DISTURBANCE_PRESETS if p in groups]
     rows = []
     for name, pairs in [(p, groups[p]) for p in order] + [("all", [q for p in order for q in groups[p]])]:
@@ -91,10 +94,10 @@ def compare(base: dict, new: dict) -> list[dict]:
 
 
 def families(base: dict, new: dict) -> dict:
-    """Successes per family (the key's first field) on each side: {family: [base, new, flights]}."""
+    """Successes per family (the episode's scenario) on each side: {family: [base, new, flights]}."""
     out = defaultdict(lambda: [0, 0, 0])
     for pair in base.keys() & new.keys():
-        f = out[pair[0].split("/", 1)[0]]
+        f = out[base[pair]["scenario"]]
         f[0] += base[pair]["outcome"] == "success"
         f[1] += new[pair]["outcome"] == "success"
         f[2] += 1

@@ -54,8 +54,8 @@ def fly(episode: dict, k: int, overrides: dict) -> dict:
     start = time.perf_counter()
     run_episode(penv, FusionExpert(ExpertConfig(**overrides)), wind_seed(ep.seed, k))
     outcome, detail = episode_outcome(penv.unwrapped)
-    return {"episode": ep.key, "wind": k, "outcome": outcome, "detail": detail,
-            "steps": int(penv.unwrapped.step_count), "wall_time": time.perf_counter() - start,
+    return {"episode": ep.key, "scenario": ep.scenario, "preset": ep.wind, "wind": k, "outcome": outcome,
+            "detail": detail, "steps": int(penv.unwrapped.step_count), "wall_time": time.perf_counter() - start,
             "formation_error_rms": episode_metrics(penv.unwrapped)["formation_error_rms"]}
 
 

@@ -105,6 +105,19 @@ def test_compare_flights_pairs_by_episode_and_wind_and_counts_the_discordant_pai
     assert f"{calm} wind 1: timeout -> success" in out and f"{gusty} wind 0: crash-obstacle -> timeout" in out
 
 
+def test_compare_flights_groups_by_the_recorded_preset_and_scenario_and_reads_old_records_by_the_key(tmp_path,
+                                                                                                     monkeypatch):
+    cf = _module("compare_flights", monkeypatch)
+    key = "urban@2/-/n3/line/s9/c900/sp2"                            # a key naming no preset, as a v0 suite's
+    new = tmp_path / "new.jsonl"
+    new.write_text(json.dumps({"episode": key, "scenario": "urban@2", "preset": "breeze", "wind": 0,
+                               "outcome": "success", "steps": 400, "formation_error_rms": 2.0, "detail": ""}) + "\n")
+    old = _flights(tmp_path / "old.jsonl", {(key, 0): ("timeout", 900)})
+    assert [r["preset"] for r in cf.compare(cf.load([str(new)]), cf.load([old]))] == ["breeze", "all"]
+    assert [r["preset"] for r in cf.compare(cf.load([old]), cf.load([str(new)]))] == ["calm", "all"]   # by the key
+    assert cf.families(cf.load([old]), cf.load([str(new)])) == {"urban@2": [0, 1, 1]}
+
+
 def test_compare_flights_refuses_bad_files_in_one_line(tmp_path, monkeypatch, capsys):
     cf = _module("compare_flights", monkeypatch)
     good = _flights(tmp_path / "a.jsonl", {("forest@2/-/n4/line/s1/c900/sp2", 0): ("success", 500)})
@@ -141,6 +154,7 @@ def test_gust_seeds_flies_each_wind_and_writes_records_compare_flights_reads(tmp
     assert "1 episodes x 2 winds = 2 flights" in capsys.readouterr().out
     records = [json.loads(line) for line in out.read_text().splitlines()]
     assert sorted(r["wind"] for r in records) == [0, 1] and all(r["steps"] <= 30 for r in records)
+    assert {(r["scenario"], r["preset"]) for r in records} == {("classic-2d@2", "gusty")}
     cf = _module("compare_flights", monkeypatch)
     assert cf.main([str(out), "--against", str(out)]) == 0
     assert capsys.readouterr().out.startswith("2 paired flights")
