@@ -46,7 +46,7 @@ def hold(preset: str, seed: int, seconds: float, mode: str, uav: UAVLimits) -> t
     env = penv.unwrapped
     lim = env.config.uav
     start = env.states[0, :2].copy()
-    mem = SimpleNamespace(wind=np.zeros(2), drift_ms=0.0, prev_pose=None, held=False)
+    mem = SimpleNamespace(wind=np.zeros(2), drift_ms=0.0, drift_z_ms=0.0, prev_pose=None, held=False)
     dist, gust = [], []
     while penv.agents:
         view = SimpleNamespace(state=env.states[0].copy(), limits=lim)

@@ -117,15 +117,35 @@ def test_gap_hold_keeps_the_gap_altitude_where_the_slot_altitude_is_too_near_the
 def test_gap_altitude_looks_along_the_target_line_out_to_the_lookahead_only():
     from baselines.fusion.controller import _gap_altitude
     occ = _wall_with_gap(3.3, 5.4)                                  # the wall at x = 2.0..2.4, the UAV at x = 0
-    view = _gap_view(occ, 4.0)
+    view, still, ahead = _gap_view(occ, 4.0), _UAVMemory(), np.array([4.0, 0.0])
     cfg = ExpertConfig()
     gap_z = 3.2 + LIM.r_uav + LIM.r_safe + cfg.gap_margin           # as in the gap_hold test above
-    assert _gap_altitude(view, np.array([4.0, 0.0]), 3.65, cfg) == pytest.approx(gap_z)
-    assert _gap_altitude(view, np.array([4.0, 0.0]), 4.3, cfg) is None          # the slot altitude passes: no gap
-    assert _gap_altitude(view, np.array([1.5, 0.0]), 3.65, cfg) is None          # the target short of the wall
-    assert _gap_altitude(view, np.array([0.0, 0.0]), 3.65, cfg) is None          # on the target
-    assert _gap_altitude(view, np.array([4.0, 0.0]), 3.65, ExpertConfig(gap_lookahead=1.5)) is None   # too short
-    assert _gap_altitude(view, np.array([4.0, 0.0]), 3.65, ExpertConfig(gap_lookahead=0)) is None     # ablation
+    assert _gap_altitude(view, still, ahead, 3.65, cfg) == pytest.approx(gap_z)
+    assert _gap_altitude(view, still, ahead, 4.3, cfg) is None                      # the slot altitude passes: no gap
+    assert _gap_altitude(view, still, np.array([1.5, 0.0]), 3.65, cfg) is None      # the target short of the wall
+    assert _gap_altitude(view, still, np.array([0.0, 0.0]), 3.65, cfg) is None      # on the target
+    assert _gap_altitude(view, still, ahead, 3.65, ExpertConfig(gap_lookahead=1.5)) is None     # too short
+    assert _gap_altitude(view, still, ahead, 3.65, ExpertConfig(gap_lookahead=0)) is None       # ablation
+
+
+def test_gap_altitude_keeps_the_vertical_gust_standoff_off_the_gap_edge():
+    """``vertical_margin``: under a vertical RMS drift of 0.2 m/s the altitude keeps wind_margin x 0.2 m/s less
+    gust_allowance x r_safe more off the gap's floor; a drift whose standoff fills the gap takes its middle; still
+    air or the switch off: the edge plus gap_margin, as before."""
+    from baselines.fusion.controller import _gap_altitude
+    occ = _wall_with_gap(3.3, 5.4)
+    view, target, cfg = _gap_view(occ, 4.0), np.array([4.0, 0.0]), ExpertConfig()
+    lowest = 3.2 + LIM.r_uav + LIM.r_safe                           # the lowest passable centre (test above)
+    gusty = _UAVMemory(drift_z_ms=0.2 ** 2)
+    standoff = cfg.wind_margin * 0.2 - cfg.gust_allowance * LIM.r_safe
+    assert standoff > 0.0
+    assert _gap_altitude(view, gusty, target, 3.65, cfg) == pytest.approx(lowest + cfg.gap_margin + standoff)
+    assert _gap_altitude(view, gusty, target, 3.65, cfg.replace(vertical_margin=False)) == pytest.approx(
+        lowest + cfg.gap_margin)
+    assert _gap_altitude(view, _UAVMemory(), target, 3.65, cfg) == pytest.approx(lowest + cfg.gap_margin)
+    highest = 5.4 - LIM.r_uav - LIM.r_safe                          # the known-free run ends at the voxel 5.3's top
+    stormy = _UAVMemory(drift_z_ms=1.0)
+    assert _gap_altitude(view, stormy, target, 3.65, cfg) == pytest.approx((lowest + highest) / 2)
 
 
 def test_gap_unseen_wall_keeps_the_gap_when_the_wall_is_unseen_at_the_slot_altitude():
@@ -135,17 +155,17 @@ def test_gap_unseen_wall_keeps_the_gap_when_the_wall_is_unseen_at_the_slot_altit
     gap_z = 3.2 + LIM.r_uav + LIM.r_safe + ExpertConfig().gap_margin  # as in the tests above
     # the slot 3 m below, where the map knows nothing: the band there holds no voxel, so without the flag the
     # level reads as clear and the UAV would descend along the wall; with it, the seen wall above the band blocks
-    assert _gap_altitude(view, np.array([4.0, 0.0]), 1.0, ExpertConfig(gap_unseen_wall=False)) is None
-    assert _gap_altitude(view, np.array([4.0, 0.0]), 1.0, ExpertConfig(gap_unseen_wall=True)) == pytest.approx(gap_z)
+    still, ahead = _UAVMemory(), np.array([4.0, 0.0])
+    assert _gap_altitude(view, still, ahead, 1.0, ExpertConfig(gap_unseen_wall=False)) is None
+    assert _gap_altitude(view, still, ahead, 1.0, ExpertConfig(gap_unseen_wall=True)) == pytest.approx(gap_z)
     open_below = _wall_with_gap(3.3, 5.4, seen_from=2.0)
     below = np.array([[2.3, y, z] for y in np.arange(-2.9, 3.0, 0.2) for z in (1.9, 1.7)])   # through the wall
     open_below.integrate(np.array([-1.0, 0.0, 1.8]), below, np.zeros(len(below), bool))   # free just below 2.0
     # the first known voxel from the band upward is free now (rays under the seen wall): no wall is assumed
-    assert _gap_altitude(_gap_view(open_below, 4.0), np.array([4.0, 0.0]), 1.0,
-                         ExpertConfig(gap_unseen_wall=True)) is None
+    assert _gap_altitude(_gap_view(open_below, 4.0), still, ahead, 1.0, ExpertConfig(gap_unseen_wall=True)) is None
     # the UAV below the band: the voxels above the band toward it are not searched past its altitude
     low = _gap_view(occ, 0.8)
-    assert _gap_altitude(low, np.array([4.0, 0.0]), 0.6, ExpertConfig(gap_unseen_wall=True)) is None
+    assert _gap_altitude(low, still, ahead, 0.6, ExpertConfig(gap_unseen_wall=True)) is None
 
 
 def _leader_on_path(goal, points, cfg):

@@ -12,8 +12,8 @@ from baselines.fusion import ExpertConfig, FusionExpert
 from baselines.fusion.controller import _UAVMemory
 from baselines.fusion.rules import (RULES, Command, Cycle, braking_fallback, braking_share, dock_approach, dock_turn,
                                     drift_guard, drift_persistence, emergency_escape, fence_clearance, gust_speed,
-                                    gust_standoff, rest_standoff, reverse_turn, station_keep, vertical_separation,
-                                    wind_estimate, wind_margin)
+                                    gust_radii, gust_standoff, rest_standoff, reverse_turn, station_keep,
+                                    vertical_separation, wind_estimate, wind_margin)
 from baselines.vfh3d import VFHPlanner
 from uavform_env import EnvConfig, parallel_env
 
@@ -292,6 +292,34 @@ def test_wind_estimate_is_the_drift_the_commands_do_not_explain():
     assert still.wind == pytest.approx([0.0, 0.0], abs=1e-12) and still.drift_ms == pytest.approx(0.0, abs=1e-20)
 
 
+def test_wind_estimate_keeps_the_vertical_drift_apart():
+    """The climb the state's vz does not explain is the vertical drift: its mean square goes into ``drift_z_ms`` (with
+    ``gust_tau``), not into the horizontal wind or ``drift_ms``."""
+    mem, dt = _UAVMemory(), LIM.dt
+    wind_estimate(view(state=(0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.3)), mem, CFG)
+    wind_estimate(view(state=(0.0, 0.0, 3.0 + 0.4 * dt, 0.0, 0.0, 0.0, 0.3)), mem, CFG)     # 0.3 commanded, 0.4 flown
+    assert mem.drift_z_ms == pytest.approx(min(1.0, dt / CFG.gust_tau) * 0.1 ** 2)
+    assert mem.drift_ms == pytest.approx(0.0, abs=1e-20) and mem.wind.tolist() == [0.0, 0.0]
+    lifted = _UAVMemory(drift_z_ms=0.2 ** 2)
+    assert gust_standoff(lifted, CFG, 2.0, LIM.r_safe, vertical=True) == pytest.approx(0.4 - CFG.gust_allowance * 0.2)
+    assert gust_standoff(lifted, CFG, 2.0, LIM.r_safe) == 0.0                             # no horizontal drift
+    assert wind_margin(lifted, CFG, 0.1, LIM.r_safe, vertical=True) == pytest.approx(CFG.wind_margin_share * 0.1)
+    assert gust_standoff(_UAVMemory(drift_ms=1.0), CFG, 2.0, LIM.r_safe, vertical=True) == 0.0
+
+
+def test_gust_radii_grow_by_the_horizontal_margin_only_where_a_horizontal_drift_reaches():
+    """``vertical_margin``: a voxel within the vertical margin + radius + r_uav of the altitudes the rollouts fly (here
+    3.0 m level, or climbing 1.5 m) grows by the horizontal margin, one above or below that band by the vertical one
+    (the floor and ceiling of a wall's gap, wall-gap v1-dev gusty); equal margins: every voxel alike, as before."""
+    voxels = np.array([[1.0, 0.0, 3.0], [1.0, 0.0, 3.55], [1.0, 0.0, 3.65], [0.0, 0.0, 2.35], [0.0, 0.0, 4.4]])
+    r_uav, radius = 0.3, 0.1                                        # the band: 3.0 -+ (0.2 + 0.1 + 0.3) m
+    assert gust_radii(3.0, 0.0, voxels, radius, 0.8, 0.2, r_uav) == pytest.approx([0.9, 0.9, 0.3, 0.3, 0.3])
+    assert gust_radii(3.0, 1.5, voxels, radius, 0.8, 0.2, r_uav) == pytest.approx([0.9, 0.9, 0.9, 0.3, 0.9])
+    assert gust_radii(3.0, -1.5, voxels, radius, 0.8, 0.2, r_uav) == pytest.approx([0.9, 0.9, 0.3, 0.9, 0.3])
+    assert np.all(gust_radii(3.0, 0.0, voxels, radius, 0.5, 0.5, r_uav) == 0.6)
+    assert gust_radii(3.0, 0.0, np.zeros((0, 3)), radius, 0.8, 0.2, r_uav).shape == (0,)
+
+
 def test_gust_speed_is_the_rms_drift_of_alternating_gusts():
     """Drift alternating +-0.4 m/s along y: the mean wind estimate stays near zero, the gust speed nears 0.4."""
     mem, dt = _UAVMemory(), LIM.dt
@@ -513,7 +541,7 @@ def test_dwa_wind_margin_in_a_breeze_is_what_r_safe_does_not_cover():
         def capturing_dwa(state, limits, dwa_cfg, goal, obstacles, radii, **kwargs):
             own = radii[radii > 0.0]                                    # voxels (the fence points have radius 0)
             if len(own):
-                seen.append((float(own.max() - own.min()), float(own.min()), kwargs["clearance_now"]))
+                seen.append((float(own.max() - own.min()), float(own.max()), kwargs["clearance_now"]))
             return dwa_plan(state, limits, dwa_cfg, goal, obstacles, radii, **kwargs)
 
         expert = FusionExpert(cfg, dwa=capturing_dwa)

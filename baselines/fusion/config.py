@@ -259,6 +259,13 @@ class ExpertConfig(Config):
     guard_dwa_exit     such a hovering UAV whose nose points away from the way off the obstacle keeps the command
                        when DWA accelerates it along a rollout at least as clear as it is now (``rules.drift_guard``);
                        False: the guard turns it in place first, as before session 22 [X]
+    vertical_margin    the gust margins per axis: ``rules.wind_estimate`` keeps the vertical drift apart, and DWA's
+                       voxels grow by the horizontal margin (``wind_margin``) only where a horizontal drift can reach
+                       them, within the vertical margin + voxel radius + r_uav of the altitudes the rollouts fly; above
+                       or below those by the vertical one (``wind_margin`` s x the vertical RMS drift;
+                       ``rules.gust_radii``); the gap rule keeps that vertical standoff more off a gap's edges. False:
+                       every voxel grows by the horizontal margin (before session 23), which closed a wall's 2-3 m gap
+                       to gusty flights [X]
     dwa                the IDWA of spec (c) with the approach speed profile, r_goal 0.1 m, ``dist_cap`` 0.5 m and
                        E11's rotation cost on the change of the turn rate (``rotation_mode="delta"``): the cost on
                        the turn rate itself kept a leader in open space from turning toward a goal off its nose [X]
@@ -360,6 +367,7 @@ class ExpertConfig(Config):
     guard_gust_time: float = 3.0
     guard_hover_speed: float = 0.1
     guard_dwa_exit: bool = True
+    vertical_margin: bool = True
     park_turn: bool = True
     park_heading: str = "followers"
     # -- no frozen followers (issue 13, session 8 "s8slots")
@@ -389,7 +397,7 @@ class ExpertConfig(Config):
                                       "park_turn", "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap",
                                       "pursuit_clear", "rejoin_hidden", "final_approach_free", "wind_drift",
                                       "dock_approach", "explore_unknown", "route_turn_cost", "fence_margin",
-                                      "solo_full_speed", "guard_dwa_exit")},
+                                      "solo_full_speed", "guard_dwa_exit", "vertical_margin")},
         "astar_layer": one_of(ASTAR_LAYERS),
         "rejoin": one_of(REJOIN_MODES),
         "park_heading": one_of(PARK_HEADINGS),

@@ -34,7 +34,8 @@ from .kernels import (clear_turn_radius, closest_approach_of, columns_without_ga
                       live_within, mark_cells, open_level_way, predicted_movers, segment_clear, slot_errors,
                       surface_clearance, trail_arc, trail_lags, trail_points)
 from .rules import (RULES, Command, Cycle, bearing_error, braking_share, clamp, drift_persistence, fence_clearance,
-                    gust_speed, leader_parked, rest_standoff, station_keep, wind_estimate, wind_margin)
+                    gust_radii, gust_speed, gust_standoff, leader_parked, rest_standoff, station_keep, wind_estimate,
+                    wind_margin)
 
 
 @dataclass
@@ -59,6 +60,7 @@ class _UAVMemory(PlannerMemory):
     last_progress_time: float = 0.0
     wind: np.ndarray = field(default_factory=lambda: np.zeros(2))
     drift_ms: float = 0.0
+    drift_z_ms: float = 0.0
     prev_pose: tuple | None = None
     held: bool = False
     hold_xy: np.ndarray | None = None
@@ -292,7 +294,7 @@ class FusionExpert(OnboardPolicy):
             centres, probs = in_sphere(local.obstacles, local.probs, pos, cfg.vfh.R_w)
         else:
             centres, probs = view.occupancy.occupied_in_sphere(pos, cfg.vfh.R_w)
-        gap_z = _gap_altitude(view, target.lookahead, z_slot, cfg)
+        gap_z = _gap_altitude(view, mem, target.lookahead, z_slot, cfg)
         z_goal = z_slot if gap_z is None else gap_z
         aim = np.array([target.lookahead[0], target.lookahead[1], z_goal])
         if math.dist(aim.tolist(), pos.tolist()) < 1e-6:       # on the target: 3D VFH+ looks along the heading
@@ -344,11 +346,18 @@ class FusionExpert(OnboardPolicy):
         if cfg.fence_margin:
             cap = min(cap, fence_clearance(pos, view.bounds_lo, view.bounds_hi, lim.r_uav))
         margin = wind_margin(mem, cfg, cap, lim.r_safe)
-        radii = np.empty(len(obstacles))
-        radii.fill(radius + margin)                 # np.full's result, without its wrapper
-        if len(fence):                          # the fence points have radius 0, plus the margin if ``fence_margin``
+        margin_z = wind_margin(mem, cfg, cap, lim.r_safe, vertical=True) if cfg.vertical_margin else margin
+        fence_radius = margin if cfg.fence_margin else 0.0      # the fence points have radius 0, plus the margin
+        n_voxels = len(obstacles)
+        if len(fence):
             obstacles = np.concatenate([obstacles, fence])
-            radii = np.concatenate([radii, np.full(len(fence), margin if cfg.fence_margin else 0.0)])
+
+        def obstacle_radii(vz):
+            radii = np.empty(len(obstacles))
+            radii[:n_voxels] = gust_radii(pos[2], vz * dwa_cfg.T_p, obstacles[:n_voxels], radius, margin, margin_z,
+                                          lim.r_uav)
+            radii[n_voxels:] = fence_radius
+            return radii
         alive = view.neighbour_alive
         alive_pos, alive_vel = (local.movers_pos, local.movers_vel) if all(alive.tolist()) else \
             (local.movers_pos[alive], local.movers_vel[alive])
@@ -357,7 +366,7 @@ class FusionExpert(OnboardPolicy):
         share = braking_share(mem, cfg)
 
         def plan(vz):
-            return self.dwa(s, lim, dwa_cfg, vertical.heading_goal, obstacles, radii, vz_cmd=vz,
+            return self.dwa(s, lim, dwa_cfg, vertical.heading_goal, obstacles, obstacle_radii(vz), vz_cmd=vz,
                             lookahead=target.lookahead, clearance_now=clearance_now, movers_pos=alive_pos,
                             movers_vel=alive_vel, v_ref=target.v_ref, v_cap=vertical.v_cap,
                             prev_alignment=mem.prev_alignment, drift=drift, brake_share=share)
@@ -369,7 +378,7 @@ class FusionExpert(OnboardPolicy):
             if held.admissible:
                 res, vz = held, 0.0
         mem.prev_alignment = res.alignment if math.isfinite(res.alignment) else 1.0
-        return Command(res.v, res.w, vz), res, clearance_now, obstacles, radii, docking
+        return Command(res.v, res.w, vz), res, clearance_now, obstacles, obstacle_radii(vz), docking
 
     # ------------------------------------------------------------------ helpers of the stages
     def _without_clearance_weight(self, dwa_cfg):
@@ -786,14 +795,15 @@ def _level_way(r, cfg: ExpertConfig, target_dir: np.ndarray) -> bool:
     return open_level_way(r.window_open, cfg.vfh.alpha_h, math.atan2(target_dir[1], target_dir[0]), cfg.level_window)
 
 
-def _gap_altitude(view, target_xy, z_pref: float, cfg: ExpertConfig) -> float | None:
+def _gap_altitude(view, mem, target_xy, z_pref: float, cfg: ExpertConfig) -> float | None:
     """The altitude to pass through a known vertical gap when the level way toward the target is blocked.
 
     The own map's columns along the line to the target (out to ``gap_lookahead``) are tested at the
     preferred altitude; if occupied voxels block that level, the known-free vertical runs of those
     columns (tall enough for the UAV and its margin, inside the altitude band) are intersected and
-    the altitude nearest ``z_pref`` inside the common run is returned. Unknown voxels do not count as
-    free here: a gap has to be seen before the UAV commits to it. None: the level is clear, or no gap.
+    the altitude nearest ``z_pref`` inside the common run, ``gap_margin`` (plus the vertical gust standoff,
+    ``vertical_margin``) off its edges, is returned. Unknown voxels do not count as free here: a gap has to be
+    seen before the UAV commits to it. None: the level is clear, or no gap.
     """
     lim = view.limits
     occ = view.occupancy
@@ -804,9 +814,11 @@ def _gap_altitude(view, target_xy, z_pref: float, cfg: ExpertConfig) -> float | 
     if dist < 1e-6:
         return None
     span = max(1, int(round(cfg.gap_depth / res)))
+    gap_margin = cfg.gap_margin + (gust_standoff(mem, cfg, cfg.wind_margin, lim.r_safe, vertical=True)
+                                   if cfg.vertical_margin else 0.0)
     best = gap_altitude_kernel(tuple(occ.arrays()), occ.origin, res, pos, dx / dist, dy / dist,
                                float(min(cfg.gap_lookahead, dist + res)), z_pref, span, lim.r_uav + lim.r_safe,
-                               lim.z_min, lim.z_max, cfg.gap_margin, cfg.gap_unseen_wall)
+                               lim.z_min, lim.z_max, gap_margin, cfg.gap_unseen_wall)
     return None if math.isnan(best) else best
 
 

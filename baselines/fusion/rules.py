@@ -14,7 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from uavform_env.dynamics import PSI, V, W, integrate, wrap
+from uavform_env.dynamics import PSI, V, VZ, W, integrate, wrap
 
 from ..vfh3d import vertical_escape
 from .kernels import closest_approach, nearest_live
@@ -288,18 +288,21 @@ def wind_estimate(view, mem, cfg) -> None:
     the commands now in its state (the kinematic model of spec (a)) predicts this pose; what is left over per
     second is the drift (the wind its autopilot has not compensated), low-pass filtered with time constant
     ``wind_tau`` into ``mem.wind``, and its squared speed with ``gust_tau`` into ``mem.drift_ms`` (both zero in
-    still air)."""
+    still air). [X] ``vertical_margin``: the climb the state's vz does not explain is the vertical drift, its square
+    filtered the same way into ``mem.drift_z_ms``."""
     dt = view.limits.dt
     s = view.state.tolist()                     # floats: the numpy scalars' values, without their glue
-    x_now, y_now, psi_now, v, w = s[0], s[1], s[PSI], s[V], s[W]
+    x_now, y_now, z_now, psi_now, v, w, vz = s[0], s[1], s[2], s[PSI], s[V], s[W], s[VZ]
     prev = mem.prev_pose
     if prev is not None:
-        x, y, _, _ = integrate(prev[0], prev[1], 0.0, prev[2], v, w, 0.0, dt)
-        drift_x, drift_y = (x_now - x) / dt, (y_now - y) / dt
+        x, y, z, _ = integrate(prev[0], prev[1], prev[3], prev[2], v, w, vz, dt)
+        drift_x, drift_y, drift_z = (x_now - x) / dt, (y_now - y) / dt, (z_now - z) / dt
         gain, wind_x, wind_y = min(1.0, dt / cfg.wind_tau), float(mem.wind[0]), float(mem.wind[1])
         mem.wind = np.array([wind_x + gain * (drift_x - wind_x), wind_y + gain * (drift_y - wind_y)])
-        mem.drift_ms += min(1.0, dt / cfg.gust_tau) * (drift_x * drift_x + drift_y * drift_y - mem.drift_ms)
-    mem.prev_pose = (x_now, y_now, psi_now)
+        gust_gain = min(1.0, dt / cfg.gust_tau)
+        mem.drift_ms += gust_gain * (drift_x * drift_x + drift_y * drift_y - mem.drift_ms)
+        mem.drift_z_ms += gust_gain * (drift_z * drift_z - mem.drift_z_ms)
+    mem.prev_pose = (x_now, y_now, psi_now, z_now)
 
 
 def gust_speed(mem) -> float:
@@ -308,12 +311,14 @@ def gust_speed(mem) -> float:
     return math.sqrt(mem.drift_ms)
 
 
-def gust_standoff(mem, cfg, time: float, r_safe: float) -> float:
+def gust_standoff(mem, cfg, time: float, r_safe: float, vertical: bool = False) -> float:
     """[X] ``gust_allowance`` (issue 13, breeze): the distance (m) a gust margin adds to a UAV's clearance: ``time`` (s)
-    x the RMS drift (``gust_speed``), less the share ``gust_allowance`` of the safety radius ``r_safe`` that every
-    clearance already keeps (never below 0). A breeze's drift (RMS ~0.16 m/s) then adds nothing where r_safe covers
-    it, while a gusty drift (~0.6 m/s) keeps nearly all of its margin."""
-    return max(0.0, time * gust_speed(mem) - cfg.gust_allowance * r_safe)
+    x the RMS drift (``gust_speed``; ``vertical``: the vertical drift's, ``mem.drift_z_ms``), less the share
+    ``gust_allowance`` of the safety radius ``r_safe`` that every clearance already keeps (never below 0). A breeze's
+    drift (RMS ~0.16 m/s) then adds nothing where r_safe covers it, while a gusty drift (~0.6 m/s) keeps nearly all
+    of its margin."""
+    speed = math.sqrt(mem.drift_z_ms) if vertical else gust_speed(mem)
+    return max(0.0, time * speed - cfg.gust_allowance * r_safe)
 
 
 def braking_share(mem, cfg) -> float:
@@ -324,13 +329,30 @@ def braking_share(mem, cfg) -> float:
     return max(cfg.dwa.brake_share, min(1.0, gust_speed(mem) / cfg.gust_braking))
 
 
-def wind_margin(mem, cfg, clearance_now: float, r_safe: float) -> float:
+def wind_margin(mem, cfg, clearance_now: float, r_safe: float, vertical: bool = False) -> float:
     """[X] ``wind_margin``, ``wind_margin_share``: how far DWA's obstacle points grow in gusts (m): ``wind_margin``
     s x the RMS drift less what r_safe covers (``gust_standoff``), at most ``wind_margin_share`` of the UAV's
     current clearance (a UAV the gusts carried inside the margin can still hold or leave: a margin as large as the
     clearance makes every sample inadmissible). A share of 1/2 lets a UAV close in to half its clearance every
     cycle, so the margin never stops an approach; a larger share keeps it nearer the clearance it has."""
-    return min(gust_standoff(mem, cfg, cfg.wind_margin, r_safe), cfg.wind_margin_share * max(0.0, clearance_now))
+    return min(gust_standoff(mem, cfg, cfg.wind_margin, r_safe, vertical),
+               cfg.wind_margin_share * max(0.0, clearance_now))
+
+
+def gust_radii(z: float, climb: float, voxels: np.ndarray, radius: float, margin: float, margin_z: float,
+               r_uav: float) -> np.ndarray:
+    """DWA's voxel radii in the wind: ``radius`` plus the horizontal ``margin`` for a voxel a horizontal drift can
+    reach (its centre within ``margin_z`` + radius + r_uav of the altitudes the rollouts fly, from ``z`` to ``z`` +
+    ``climb``), plus the vertical ``margin_z`` for one above or below those; equal margins: every voxel alike."""
+    radii = np.empty(len(voxels))
+    if margin == margin_z:
+        radii.fill(radius + margin)                 # np.full's result, without its wrapper
+        return radii
+    reach = margin_z + radius + r_uav
+    lo, hi = min(z, z + climb) - reach, max(z, z + climb) + reach
+    beside = (voxels[:, 2] > lo) & (voxels[:, 2] < hi)
+    radii[:] = np.where(beside, radius + margin, radius + margin_z)
+    return radii
 
 
 def fence_clearance(pos, bounds_lo, bounds_hi, r_uav: float) -> float:
