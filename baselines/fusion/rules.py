@@ -295,14 +295,14 @@ def wind_estimate(view, mem, cfg) -> None:
     x_now, y_now, z_now, psi_now, v, w, vz = s[0], s[1], s[2], s[PSI], s[V], s[W], s[VZ]
     prev = mem.prev_pose
     if prev is not None:
-        x, y, z, _ = integrate(prev[0], prev[1], prev[3], prev[2], v, w, vz, dt)
+        x, y, z, _ = integrate(prev[0], prev[1], prev[2], prev[3], v, w, vz, dt)
         drift_x, drift_y, drift_z = (x_now - x) / dt, (y_now - y) / dt, (z_now - z) / dt
         gain, wind_x, wind_y = min(1.0, dt / cfg.wind_tau), float(mem.wind[0]), float(mem.wind[1])
         mem.wind = np.array([wind_x + gain * (drift_x - wind_x), wind_y + gain * (drift_y - wind_y)])
         gust_gain = min(1.0, dt / cfg.gust_tau)
         mem.drift_ms += gust_gain * (drift_x * drift_x + drift_y * drift_y - mem.drift_ms)
         mem.drift_z_ms += gust_gain * (drift_z * drift_z - mem.drift_z_ms)
-    mem.prev_pose = (x_now, y_now, psi_now, z_now)
+    mem.prev_pose = (x_now, y_now, z_now, psi_now)
 
 
 def gust_speed(mem) -> float:
