@@ -29,7 +29,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from baselines.fusion import ExpertConfig
-from baselines.fusion.rules import gust_speed, station_keep, wind_estimate
+from baselines.fusion.rules import WindMemory, gust_speed, station_keep, wind_estimate
 from disturbance_drift import AIRFRAMES, field
 from uavform_env import parallel_env
 from uavform_env.config import EnvConfig, UAVLimits
@@ -46,7 +46,7 @@ def hold(preset: str, seed: int, seconds: float, mode: str, uav: UAVLimits) -> t
     env = penv.unwrapped
     lim = env.config.uav
     start = env.states[0, :2].copy()
-    mem = SimpleNamespace(wind=np.zeros(2), drift_ms=0.0, drift_z_ms=0.0, prev_pose=None, held=False)
+    mem = WindMemory()
     dist, gust = [], []
     while penv.agents:
         view = SimpleNamespace(state=env.states[0].copy(), limits=lim)

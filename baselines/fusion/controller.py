@@ -33,14 +33,15 @@ from .config import ExpertConfig
 from .kernels import (clear_turn_radius, closest_approach_of, columns_without_gap, gap_altitude_kernel, in_sphere,
                       live_within, mark_cells, open_level_way, predicted_movers, segment_clear, slot_errors,
                       surface_clearance, trail_arc, trail_lags, trail_points)
-from .rules import (RULES, Command, Cycle, bearing_error, braking_share, clamp, drift_persistence, fence_clearance,
-                    gust_radii, gust_speed, gust_standoff, leader_parked, rest_standoff, station_keep, wind_estimate,
-                    wind_margin)
+from .rules import (RULES, Command, Cycle, WindMemory, bearing_error, braking_share, clamp, drift_persistence,
+                    fence_clearance, gust_radii, gust_speed, gust_standoff, leader_parked, rest_standoff, station_keep,
+                    wind_estimate, wind_margin)
 
 
 @dataclass
-class _UAVMemory(PlannerMemory):
-    """What one UAV's controller remembers between cycles: the shared (g4) state and the expert's own."""
+class _UAVMemory(PlannerMemory, WindMemory):
+    """What one UAV's controller remembers between cycles: the shared (g4) state, the wind rules' and the expert's
+    own."""
 
     column_until: float = -1.0
     plan_goal: np.ndarray | None = None
@@ -58,11 +59,6 @@ class _UAVMemory(PlannerMemory):
     park_watch: tuple | None = None
     best_goal_distance: float = math.inf
     last_progress_time: float = 0.0
-    wind: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    drift_ms: float = 0.0
-    drift_z_ms: float = 0.0
-    prev_pose: tuple | None = None
-    held: bool = False
     hold_xy: np.ndarray | None = None
     hold_margin: float = 0.0
     cruise_z: float | None = None

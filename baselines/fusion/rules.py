@@ -9,7 +9,7 @@ implements; the fields are documented in ``ExpertConfig``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -281,6 +281,20 @@ def home_in(view, mem, cfg, point_xy) -> Command:
     if sin_err > 1e-9:
         v = min(v, lim.w_max * dist / (2.0 * sin_err))          # pure pursuit onto the point (no orbit)
     return Command(clamp(v, 0.0, lim.v_max), w, 0.0)
+
+
+@dataclass
+class WindMemory:
+    """What the wind rules keep of one UAV between cycles: the wind estimate and the mean squares of the horizontal
+    and vertical drift (``wind_estimate``), the pose it predicts from, and whether a holding UAV rests
+    (``station_keep``). The expert's per-UAV memory extends it; a script that holds a UAV with these rules alone
+    (benchmarks/wind_authority.py) starts from it."""
+
+    wind: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    drift_ms: float = 0.0
+    drift_z_ms: float = 0.0
+    prev_pose: tuple | None = None
+    held: bool = False
 
 
 def wind_estimate(view, mem, cfg) -> None:
