@@ -362,19 +362,20 @@ class FusionExpert(OnboardPolicy):
         share = braking_share(mem, cfg)
 
         def plan(vz):
-            return self.dwa(s, lim, dwa_cfg, vertical.heading_goal, obstacles, obstacle_radii(vz), vz_cmd=vz,
+            radii = obstacle_radii(vz)
+            return self.dwa(s, lim, dwa_cfg, vertical.heading_goal, obstacles, radii, vz_cmd=vz,
                             lookahead=target.lookahead, clearance_now=clearance_now, movers_pos=alive_pos,
                             movers_vel=alive_vel, v_ref=target.v_ref, v_cap=vertical.v_cap,
-                            prev_alignment=mem.prev_alignment, drift=drift, brake_share=share)
+                            prev_alignment=mem.prev_alignment, drift=drift, brake_share=share), radii
 
         vz = vertical.vz
-        res = plan(vz)
+        res, radii = plan(vz)
         if not res.admissible and vz != 0.0:
-            held = plan(0.0)                     # the climb itself may be what collides: try holding altitude
+            held, held_radii = plan(0.0)         # the climb itself may be what collides: try holding altitude
             if held.admissible:
-                res, vz = held, 0.0
+                res, vz, radii = held, 0.0, held_radii
         mem.prev_alignment = res.alignment if math.isfinite(res.alignment) else 1.0
-        return Command(res.v, res.w, vz), res, clearance_now, obstacles, obstacle_radii(vz), docking
+        return Command(res.v, res.w, vz), res, clearance_now, obstacles, radii, docking
 
     # ------------------------------------------------------------------ helpers of the stages
     def _without_clearance_weight(self, dwa_cfg):

@@ -319,20 +319,19 @@ def wind_estimate(view, mem, cfg) -> None:
     mem.prev_pose = (x_now, y_now, z_now, psi_now)
 
 
-def gust_speed(mem) -> float:
-    """The UAV's typical drift speed (m/s): the root mean square of its drift over ``gust_tau`` (``wind_estimate``).
-    Under gusts the drift changes faster than ``mem.wind`` follows; this is what a wind margin must cover."""
-    return math.sqrt(mem.drift_ms)
+def gust_speed(mem, vertical: bool = False) -> float:
+    """The UAV's typical drift speed (m/s): the root mean square of its horizontal (``vertical``: vertical) drift over
+    ``gust_tau`` (``wind_estimate``). Under gusts the drift changes faster than ``mem.wind`` follows; this is what a
+    wind margin must cover."""
+    return math.sqrt(mem.drift_z_ms if vertical else mem.drift_ms)
 
 
 def gust_standoff(mem, cfg, time: float, r_safe: float, vertical: bool = False) -> float:
     """[X] ``gust_allowance`` (issue 13, breeze): the distance (m) a gust margin adds to a UAV's clearance: ``time`` (s)
-    x the RMS drift (``gust_speed``; ``vertical``: the vertical drift's, ``mem.drift_z_ms``), less the share
-    ``gust_allowance`` of the safety radius ``r_safe`` that every clearance already keeps (never below 0). A breeze's
-    drift (RMS ~0.16 m/s) then adds nothing where r_safe covers it, while a gusty drift (~0.6 m/s) keeps nearly all
-    of its margin."""
-    speed = math.sqrt(mem.drift_z_ms) if vertical else gust_speed(mem)
-    return max(0.0, time * speed - cfg.gust_allowance * r_safe)
+    x the RMS drift (``gust_speed``; ``vertical``: the vertical drift's), less the share ``gust_allowance`` of the
+    safety radius ``r_safe`` that every clearance already keeps (never below 0). A breeze's drift (RMS ~0.16 m/s) then
+    adds nothing where r_safe covers it, while a gusty drift (~0.6 m/s) keeps nearly all of its margin."""
+    return max(0.0, time * gust_speed(mem, vertical) - cfg.gust_allowance * r_safe)
 
 
 def braking_share(mem, cfg) -> float:
@@ -358,15 +357,14 @@ def gust_radii(z: float, climb: float, voxels: np.ndarray, radius: float, margin
     """DWA's voxel radii in the wind: ``radius`` plus the horizontal ``margin`` for a voxel a horizontal drift can
     reach (its centre within ``margin_z`` + radius + r_uav of the altitudes the rollouts fly, from ``z`` to ``z`` +
     ``climb``), plus the vertical ``margin_z`` for one above or below those; equal margins: every voxel alike."""
-    radii = np.empty(len(voxels))
     if margin == margin_z:
+        radii = np.empty(len(voxels))
         radii.fill(radius + margin)                 # np.full's result, without its wrapper
         return radii
     reach = margin_z + radius + r_uav
     lo, hi = min(z, z + climb) - reach, max(z, z + climb) + reach
     beside = (voxels[:, 2] > lo) & (voxels[:, 2] < hi)
-    radii[:] = np.where(beside, radius + margin, radius + margin_z)
-    return radii
+    return np.where(beside, radius + margin, radius + margin_z)
 
 
 def fence_clearance(pos, bounds_lo, bounds_hi, r_uav: float) -> float:
