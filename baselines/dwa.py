@@ -647,7 +647,8 @@ class _Params(NamedTuple):
     separation and every input of the eq. 12 score.
 
     ``lam`` < 1 blends the heading with distance progress (E8); ``vel_target`` < 0 means the plain
-    v / v_max term, otherwise 1 - |v - vel_target| / v_max; ``rot_ref`` is 0 (|w|) or w0 (|w - w0|).
+    v / v_max term, otherwise 1 - |v - vel_target| / v_max; ``rot_ref`` is 0 (|w|) or w0 (|w - w0|);
+    ``mover_dist``: the movers' clearance counts in the dist term (else only in admissibility).
     """
 
     v_res: float
@@ -681,6 +682,7 @@ class _Params(NamedTuple):
     drift_x: float
     drift_y: float
     brake_share: float
+    mover_dist: bool
 
 
 @numba.njit(cache=True)
@@ -739,12 +741,15 @@ def _plan_kernel(state, v_lo, v_hi, w_lo, w_hi, obstacles, radii, movers_pos, mo
         v, w, path = vs[i], ws[i], paths[i]
         c = _static_clearance(path, spheres[i], reach[i], obstacles, rads, lows, keep, mask, start[i], stop_below[i])
         ok = c > 0.0 and c >= d_brake[i]
+        d = c
         if (ok or exact_clearance) and movers_pos.shape[0] > 0:
             c_mover = _mover_clearance(path[:n_steps], track, p.R_uu)
             ok = ok and c_mover >= 0.0
             c = min(c, c_mover)
+            if p.mover_dist:
+                d = c
         clearance[i] = c
-        dist[i] = min(c, p.dist_cap)
+        dist[i] = min(d, p.dist_cap)
         admissible[i] = ok
         ex, ey, psi_end = path[n_steps - 1, 0], path[n_steps - 1, 1], yaw[i % n_w, n_steps - 1, 0]
         endpoint[i, :] = path[n_steps - 1]
@@ -832,7 +837,8 @@ def _rotation_weight(cfg: DWAConfig, clearance_now: float, prev_alignment: float
 def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle_radius, *,
              vz_cmd: float = 0.0, lookahead=None, clearance_now: float = math.inf, movers_pos=None,
              movers_vel=None, v_ref: float | None = None, v_cap: float | None = None,
-             prev_alignment: float | None = None, drift=None, brake_share: float | None = None) -> DWAResult:
+             prev_alignment: float | None = None, drift=None, brake_share: float | None = None,
+             mover_dist: bool = True) -> DWAResult:
     """One DWA planning cycle: the best admissible (v, w) of the dynamic window (spec (b), (c)).
 
     state: (7,) row (x, y, z, psi, v, w, vz). goal, lookahead: (2,) or (3,); only x, y are used;
@@ -840,9 +846,10 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
     (``obstacle_radius`` (M,) or one number); the clearance is |p_k - o| - R_o - r_uav.
     clearance_now: the UAV's current clearance d_min (E11 proximity weight).
     movers_pos, movers_vel: (K, 3) neighbours, predicted at constant velocity and compared at the
-    same time step; a sample closer than R_uu to one is inadmissible and the gap minus R_uu counts
-    in the dist term. The braking test (``brake_share``) applies to static obstacles only: braking
-    does not open the gap to a moving neighbour, and it would forbid formation speed at 2 m spacing.
+    same time step; a sample closer than R_uu to one is inadmissible and, with ``mover_dist`` (False: the
+    leader, which never yields (g6)), the gap minus R_uu counts in the dist term. The braking test
+    (``brake_share``) applies to static obstacles only: braking does not open the gap to a moving
+    neighbour, and it would forbid formation speed at 2 m spacing.
     v_ref: follower speed matching of spec (g2), vel = 1 - |v - v_ref| / v_max (overrides the
     approach speed profile). v_cap: speed cap (leader cap, deadlock yield).
     prev_alignment: c of the previous cycle's choice (E10 per_step, E11 alignment; None -> 1).
@@ -880,6 +887,8 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
         brake_share = cfg.brake_share
     elif not 0.0 <= _finite("brake_share", brake_share) <= 1.0:
         raise ValueError(f"brake_share={brake_share!r}: expected a share in [0, 1]")
+    if not isinstance(mover_dist, bool):
+        raise ValueError(f"mover_dist={mover_dist!r}: expected True or False")
     n_steps = round(cfg.T_p / limits.dt)
     if n_steps < 1:
         raise ValueError(f"DWAConfig.T_p={cfg.T_p!r} is shorter than one step (UAVLimits.dt={limits.dt!r})")
@@ -909,7 +918,7 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
                      float(vel_target), float(w0 if cfg.rotation_mode == "delta" else 0.0), float(alpha),
                      float(cfg.kappa), per_candidate, float(cfg.beta), float(cfg.gamma),
                      float(_rotation_weight(cfg, clearance_now, prev_alignment)), cfg.norm == "minmax",
-                     drift_x, drift_y, float(brake_share))
+                     drift_x, drift_y, float(brake_share), mover_dist)
     params = tuple(params)             # plain: see _plan_kernel
 
     def run(v_lo_, v_hi_, w_lo_, w_hi_, exact_clearance):

@@ -41,8 +41,9 @@ def rollout_steps(vs, lim, cfg):
 
 
 def reference_plan(state, lim, cfg, goal, obstacles, radii, lookahead=None, clearance_now=math.inf,
-                   movers_pos=None, movers_vel=None, v_ref=None, prev_alignment=None):
-    """Straightforward numpy re-implementation of spec (b) + (c), written from the spec formulas.
+                   movers_pos=None, movers_vel=None, v_ref=None, prev_alignment=None, mover_dist=True):
+    """Straightforward numpy re-implementation of spec (b) + (c), written from the spec formulas; the movers count
+    in the dist term only with ``mover_dist``.
 
     Returns (vs, ws, admissible, clearance_true, score, endpoints); clearance_true is uncapped.
     """
@@ -63,12 +64,15 @@ def reference_plan(state, lim, cfg, goal, obstacles, radii, lookahead=None, clea
     d_brake = braking_clearance(vs, lim, cfg)
     adm = (c_static > 0) & (c_static >= d_brake)
     clearance = c_static.copy()
+    c_dist = c_static
     if movers_pos is not None:
         t = np.arange(1, n + 1)[:, None, None] * dt
         m_pos = movers_pos[None] + movers_vel[None] * t  # (n, K, 3)
         c_mover = (np.linalg.norm(pts[:, :n, None, :] - m_pos[None], axis=-1) - cfg.R_uu).min(axis=(1, 2))
         adm &= c_mover >= 0
         clearance = np.minimum(clearance, c_mover)
+        if mover_dist:
+            c_dist = clearance
     ex, ey, psi_end = xs[:, -1], ys[:, -1], psi_k[:, -1]
     g = np.asarray(goal, float)[:2]
     rho_d = math.hypot(*(g - state[:2]))
@@ -81,7 +85,7 @@ def reference_plan(state, lim, cfg, goal, obstacles, radii, lookahead=None, clea
         lam = min(1.0, rho_d / (cfg.R_sw or reach))
         dg = 1 - np.hypot(g[0] - ex, g[1] - ey) / (rho_d + reach)
         heading = lam * heading + (1 - lam) * dg
-    dist = np.minimum(clearance, cfg.D_cap if cfg.dist_cap is None else cfg.dist_cap)
+    dist = np.minimum(c_dist, cfg.D_cap if cfg.dist_cap is None else cfg.dist_cap)
     if v_ref is not None:
         vel = 1 - np.abs(vs - v_ref) / lim.v_max
     elif cfg.approach_speed_profile and lam < 1:
@@ -96,7 +100,7 @@ def reference_plan(state, lim, cfg, goal, obstacles, radii, lookahead=None, clea
     short = np.linalg.norm(b, axis=1) < 1e-3
     b[short] = np.column_stack([np.cos(psi_end), np.sin(psi_end)])[short]
     cos_ab = np.clip(b @ a / (np.linalg.norm(a) * np.linalg.norm(b, axis=1)), -1, 1) \
-        if np.linalg.norm(a) > 1e-9 else np.ones(len(vs))
+        if np.linalg.norm(a) >= 1e-9 else np.ones(len(vs))  # the kernel: c = 1 below 1e-9
     c_prev = 1.0 if prev_alignment is None else prev_alignment
     if not cfg.use_astar_weight:
         alpha = np.full(len(vs), cfg.alpha)
@@ -142,7 +146,8 @@ def random_scene(data, with_movers):
                                                   np.full(k, 3.0)]),
                       movers_vel=np.column_stack([np.array(data.draw(st.lists(f(-1, 1), min_size=2 * k,
                                                                               max_size=2 * k))).reshape(k, 2),
-                                                  np.zeros(k)]))
+                                                  np.zeros(k)]),
+                      mover_dist=data.draw(st.booleans()))
     return state, goal, obstacles, radii, movers
 
 
@@ -464,6 +469,27 @@ def test_mover_clearance_counts_in_dist_but_not_in_braking():
     assert res.candidates.clearance[straight][0] == pytest.approx(1.0 - cfg.R_uu, abs=1e-9)
 
 
+def test_leader_movers_count_in_admissibility_not_in_dist():
+    """``mover_dist=False`` (the leader, which never yields (g6)): a wingman 1.2 m to the left, flying alongside,
+    leaves the dist term as in free space, though the clearances report its 0.4 m gap; counted, it lowers the
+    score of the samples veering toward it. Oncoming 0.7 m to the left, it blocks the straight samples either way."""
+    state = state_row(v=0.8)
+    cfg = DWAConfig()
+    wing = dict(movers_pos=[[0.0, 1.2, 3.0]], movers_vel=[[0.8, 0.0, 0.0]])
+    alone = dwa_plan(state, LIM, cfg, [30.0, 0, 3], NO_OBSTACLES, 0.0)
+    counted = dwa_plan(state, LIM, cfg, [30.0, 0, 3], NO_OBSTACLES, 0.0, **wing)
+    ignored = dwa_plan(state, LIM, cfg, [30.0, 0, 3], NO_OBSTACLES, 0.0, mover_dist=False, **wing)
+    np.testing.assert_array_equal(ignored.candidates.score, alone.candidates.score)
+    np.testing.assert_array_equal(ignored.candidates.clearance, counted.candidates.clearance)
+    assert 0.0 < ignored.candidates.clearance.min() <= 1.2 - cfg.R_uu + 1e-9 < alone.candidates.clearance.min()
+    left = counted.candidates.w == counted.candidates.w.max()
+    assert (counted.candidates.score[left] < ignored.candidates.score[left]).all()
+    oncoming = dict(movers_pos=[[3.0, 0.7, 3.0]], movers_vel=[[-0.5, 0.0, 0.0]])
+    for mover_dist in (True, False):
+        res = dwa_plan(state_row(v=0.5), LIM, cfg, [9.0, 0, 3], NO_OBSTACLES, 0.0, mover_dist=mover_dist, **oncoming)
+        assert not res.candidates.admissible[res.candidates.w >= 0].any()
+
+
 # ----------------------------------------------------------------------------- config and inputs
 
 
@@ -526,6 +552,7 @@ def test_config_round_trip():
     (dict(v_cap=-1.0), "v_cap"),
     (dict(state=state_row(v=1.5)), "v0"),
     (dict(clearance_now=float("nan")), "clearance_now"),
+    (dict(mover_dist=1), "mover_dist"),
 ])
 def test_bad_inputs_name_the_argument(kwargs, match):
     args = dict(state=state_row(), limits=LIM, cfg=DWAConfig(), goal=[5.0, 0, 3],

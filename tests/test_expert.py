@@ -161,6 +161,24 @@ def test_weights_change_the_actions():
     assert a["uav_0"][1] < 0.0 and b["uav_0"][1] == 0.0      # turn right toward the goal / keep straight
 
 
+@pytest.mark.parametrize("right_of_way", [True, False])
+def test_the_leader_never_yields_in_the_dist_term(right_of_way):
+    """(g6) with ``leader_right_of_way``: the leader's DWA call leaves its neighbours out of the dist term, the
+    followers' keep them (every call passes them as movers for admissibility); off, every UAV counts them."""
+    seen = {}
+
+    def spy(*args, **kwargs):
+        seen.setdefault(len(seen), (kwargs["mover_dist"], len(kwargs["movers_pos"])))
+        return dwa_plan(*args, **kwargs)
+
+    penv = parallel_env(scenario=scenario(), max_cycles=5)
+    obs, _ = penv.reset(seed=0)
+    policy = FusionExpert(ExpertConfig(leader_right_of_way=right_of_way), dwa=spy)
+    policy.reset(penv, seed=0)
+    policy.act(obs, penv)
+    assert seen == {0: (not right_of_way, 2), 1: (True, 2), 2: (True, 2)}     # uav_0 (leader), uav_1, uav_2
+
+
 # ----------------------------------------------------------------------------- bad input
 
 

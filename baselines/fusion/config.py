@@ -35,6 +35,11 @@ class ExpertConfig(Config):
                        closes on its own slot, which is what the env judges (DWA keeps its clearance): a follower
                        whose map showed a voxel within r_uav + r_safe + a voxel of a slot 0.76 m from a tree flew
                        to the column slot 11 m away and stayed there [X]
+    leader_right_of_way  (g6)'s "the leader never yields" in DWA's dist term: the leader's dist term counts no
+                       neighbour (each still makes a sample closer than R_uu inadmissible); followers count every
+                       neighbour. Else the dist term holds the leader back for followers that give way to it: a
+                       dog-leg leader turned back at a wall's closed end crawled 8 s at 0.05-0.2 m/s behind its
+                       follower, which was on its way round it to its slot [X]
     column_shape       the column of ``shape_switching``: ``"rigid"``, slots ``index`` x spacing behind the leader along
                        its heading; ``"trail"``, places that far behind it along its broadcast trail, followed as a
                        path (``FusionExpert._file_place``), and the leader's pace (``leader_pace="trail"``) lets each
@@ -296,6 +301,7 @@ class ExpertConfig(Config):
     neighbour_prediction: bool = True
     shape_switching: bool = True
     column_at_goal: bool = False
+    leader_right_of_way: bool = True
     column_shape: str = "trail"
     astar_layer: str = "passable"
     dwa_map_level: int = 0
@@ -393,7 +399,8 @@ class ExpertConfig(Config):
     BOUNDS: ClassVar[dict] = {
         "dwa": instance_of(DWAConfig), "vfh": instance_of(VFHConfig), "astar": instance_of(AStarConfig),
         **{name: boolean for name in ("use_vfh", "neighbour_prediction", "shape_switching", "column_at_goal",
-                                      "climb_target_limit", "gap_hold", "gap_unseen_wall", "path_to_goal", "slot_brake",
+                                      "leader_right_of_way", "climb_target_limit", "gap_hold", "gap_unseen_wall",
+                                      "path_to_goal", "slot_brake",
                                       "park_turn", "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap",
                                       "pursuit_clear", "rejoin_hidden", "final_approach_free", "wind_drift",
                                       "dock_approach", "explore_unknown", "route_turn_cost", "fence_margin",

@@ -366,7 +366,8 @@ class FusionExpert(OnboardPolicy):
             return self.dwa(s, lim, dwa_cfg, vertical.heading_goal, obstacles, radii, vz_cmd=vz,
                             lookahead=target.lookahead, clearance_now=clearance_now, movers_pos=alive_pos,
                             movers_vel=alive_vel, v_ref=target.v_ref, v_cap=vertical.v_cap,
-                            prev_alignment=mem.prev_alignment, drift=drift, brake_share=share), radii
+                            prev_alignment=mem.prev_alignment, drift=drift, brake_share=share,
+                            mover_dist=not (cfg.leader_right_of_way and view.is_leader)), radii
 
         vz = vertical.vz
         res, radii = plan(vz)
