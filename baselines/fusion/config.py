@@ -37,9 +37,9 @@ class ExpertConfig(Config):
                        to the column slot 11 m away and stayed there [X]
     leader_right_of_way  (g6)'s "the leader never yields" in DWA's dist term: the leader's dist term counts no
                        neighbour (each still makes a sample closer than R_uu inadmissible); followers count every
-                       neighbour. Else the dist term holds the leader back for followers that give way to it: a
-                       dog-leg leader turned back at a wall's closed end crawled 8 s at 0.05-0.2 m/s behind its
-                       follower, which was on its way round it to its slot [X]
+                       neighbour. Off by default: it lifted v1-dev (a dog-leg leader turned back at a wall's closed
+                       end had crawled 8 s behind its follower) but not v1, where it added obstacle crashes; figures
+                       in docs/deviations.md [X]
     column_shape       the column of ``shape_switching``: ``"rigid"``, slots ``index`` x spacing behind the leader along
                        its heading; ``"trail"``, places that far behind it along its broadcast trail, followed as a
                        path (``FusionExpert._file_place``), and the leader's pace (``leader_pace="trail"``) lets each
@@ -301,7 +301,7 @@ class ExpertConfig(Config):
     neighbour_prediction: bool = True
     shape_switching: bool = True
     column_at_goal: bool = False
-    leader_right_of_way: bool = True
+    leader_right_of_way: bool = False
     column_shape: str = "trail"
     astar_layer: str = "passable"
     dwa_map_level: int = 0
