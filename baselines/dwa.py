@@ -846,10 +846,10 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
     (``obstacle_radius`` (M,) or one number); the clearance is |p_k - o| - R_o - r_uav.
     clearance_now: the UAV's current clearance d_min (E11 proximity weight).
     movers_pos, movers_vel: (K, 3) neighbours, predicted at constant velocity and compared at the
-    same time step; a sample closer than R_uu to one is inadmissible and, with ``mover_dist`` (False: the
-    leader, which never yields (g6)), the gap minus R_uu counts in the dist term. The braking test
-    (``brake_share``) applies to static obstacles only: braking does not open the gap to a moving
-    neighbour, and it would forbid formation speed at 2 m spacing.
+    same time step; a sample closer than R_uu to one is inadmissible and, with ``mover_dist`` (False: a
+    leader given right of way, ``ExpertConfig.leader_right_of_way``), the gap minus R_uu counts in the dist
+    term. The braking test (``brake_share``) applies to static obstacles only: braking does not open the
+    gap to a moving neighbour, and it would forbid formation speed at 2 m spacing.
     v_ref: follower speed matching of spec (g2), vel = 1 - |v - v_ref| / v_max (overrides the
     approach speed profile). v_cap: speed cap (leader cap, deadlock yield).
     prev_alignment: c of the previous cycle's choice (E10 per_step, E11 alignment; None -> 1).

@@ -470,7 +470,7 @@ def test_mover_clearance_counts_in_dist_but_not_in_braking():
 
 
 def test_leader_movers_count_in_admissibility_not_in_dist():
-    """``mover_dist=False`` (the leader, which never yields (g6)): a wingman 1.2 m to the left, flying alongside,
+    """``mover_dist=False`` (a leader given right of way, (g6)): a wingman 1.2 m to the left, flying alongside,
     leaves the dist term as in free space, though the clearances report its 0.4 m gap; counted, it lowers the
     score of the samples veering toward it. Oncoming 0.7 m to the left, it blocks the straight samples either way."""
     state = state_row(v=0.8)
