@@ -165,10 +165,10 @@ def test_weights_change_the_actions():
 def test_the_leader_never_yields_in_the_dist_term(right_of_way):
     """(g6) with ``leader_right_of_way``: the leader's DWA call leaves its neighbours out of the dist term, the
     followers' keep them (every call passes them as movers for admissibility); off, every UAV counts them."""
-    seen = {}
+    seen = []
 
     def spy(*args, **kwargs):
-        seen.setdefault(len(seen), (kwargs["mover_dist"], len(kwargs["movers_pos"])))
+        seen.append((kwargs["mover_dist"], len(kwargs["movers_pos"])))
         return dwa_plan(*args, **kwargs)
 
     penv = parallel_env(scenario=scenario(), max_cycles=5)
@@ -176,7 +176,7 @@ def test_the_leader_never_yields_in_the_dist_term(right_of_way):
     policy = FusionExpert(ExpertConfig(leader_right_of_way=right_of_way), dwa=spy)
     policy.reset(penv, seed=0)
     policy.act(obs, penv)
-    assert seen == {0: (not right_of_way, 2), 1: (True, 2), 2: (True, 2)}     # uav_0 (leader), uav_1, uav_2
+    assert seen == [(not right_of_way, 2), (True, 2), (True, 2)]             # uav_0 (leader), uav_1, uav_2
 
 
 # ----------------------------------------------------------------------------- bad input

@@ -360,6 +360,7 @@ class FusionExpert(OnboardPolicy):
         still = mem.wind[0] == 0.0 and mem.wind[1] == 0.0
         drift = mem.wind * drift_persistence(lim, dwa_cfg.T_p) if cfg.wind_drift and not still else None
         share = braking_share(mem, cfg)
+        mover_dist = not (cfg.leader_right_of_way and view.is_leader)     # (g6): the leader never yields
 
         def plan(vz):
             radii = obstacle_radii(vz)
@@ -367,7 +368,7 @@ class FusionExpert(OnboardPolicy):
                             lookahead=target.lookahead, clearance_now=clearance_now, movers_pos=alive_pos,
                             movers_vel=alive_vel, v_ref=target.v_ref, v_cap=vertical.v_cap,
                             prev_alignment=mem.prev_alignment, drift=drift, brake_share=share,
-                            mover_dist=not (cfg.leader_right_of_way and view.is_leader)), radii
+                            mover_dist=mover_dist), radii
 
         vz = vertical.vz
         res, radii = plan(vz)
