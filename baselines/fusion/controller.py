@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -381,10 +381,11 @@ class FusionExpert(OnboardPolicy):
 
     # ------------------------------------------------------------------ helpers of the stages
     def _without_clearance_weight(self, dwa_cfg):
-        """``dwa_cfg`` with beta = 0 (``final_approach_free``), made once per configuration, not every cycle."""
+        """``dwa_cfg`` with beta = 0 (``final_approach_free``), made once per configuration, not every cycle (with
+        residual weights every cycle has its own configuration: ``with_checked``, as ``with_weights`` sets beta)."""
         last = self._free_approach
         if last[0] is not dwa_cfg:
-            last = self._free_approach = (dwa_cfg, replace(dwa_cfg, beta=0.0))
+            last = self._free_approach = (dwa_cfg, dwa_cfg.with_checked(beta=0.0))
         return last[1]
 
     @staticmethod
