@@ -2,7 +2,8 @@
 benchmarks reach into the env's and the expert's stages (the wind ones fly ``baselines.fusion.rules``' station keeping
 and wind estimate outside the controller), so a change of those signatures must show here (session 22 found
 ``wind_authority.py`` broken since ``station_keep`` took a clearance); and the paired comparison of flight records
-(``compare_flights.py``) against scipy's binomial test. The suite-wide ones (``gust_seeds.py``,
+(``compare_flights.py``) against scipy's binomial test; the split of a collision's clearance loss
+(``crash_causes.py``) against known answers. The suite-wide ones (``gust_seeds.py``,
 ``dogleg_feasibility.py``) fly a suite file of one short episode; ``env_step.py`` and ``train_throughput.py`` a
 handful of steps."""
 
@@ -11,6 +12,7 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from scipy.stats import binomtest
 
@@ -190,3 +192,45 @@ def test_env_step_reports_every_n_with_the_anchors(tmp_path, monkeypatch, capsys
     vector = result["vector"][0]
     assert (vector["copies"], vector["workers"], vector["steps"]) == (2, 1, 5) and vector["agent_steps_per_s"] > 0.0
     assert "| 2 | " in capsys.readouterr().out
+
+
+def test_crash_causes_splits_a_known_clearance_loss(monkeypatch):
+    """A wall at x = 5 (clearance 5 - x): three steps of 0.3 m toward it, 0.2 of each the wind's, lose 0.6 m to the
+    wind and 0.3 to the UAV; a step along the wall loses nothing; a separation's gradient is the unit offset."""
+    cc = _module("crash_causes", monkeypatch)
+    wall = lambda p: 5.0 - float(p[0])                                  # noqa: E731
+    pos = np.array([[0.0, 0.0, 3.0], [0.3, 0.0, 3.0], [0.6, 0.0, 3.0], [0.9, 0.5, 3.0]])
+    winds = np.array([[0.2, 0.0, 0.0], [0.2, 0.0, 0.0], [0.2, 0.5, 0.0]])
+    wind, own = cc.split_loss(pos, winds, wall)
+    assert wind == pytest.approx(0.6, abs=1e-9) and own == pytest.approx(0.3, abs=1e-9)
+    rel = np.array([[3.0, 4.0, 0.0], [2.4, 3.2, 0.0]])                   # 5 m apart, closing by 1 m, all the wind's
+    wind, own = cc.split_loss(rel, np.array([[-0.6, -0.8, 0.0]]), lambda p: float(np.linalg.norm(p)))
+    assert wind == pytest.approx(1.0, abs=1e-6) and own == pytest.approx(0.0, abs=1e-6)
+
+
+def test_crash_causes_replays_each_collision_and_reports_a_replay_that_differs(tmp_path, monkeypatch, capsys):
+    suite = _one_episode_suite(tmp_path, "classic-2d@2", 5, disturbance="gusty", difficulty="base")
+    key = "classic-2d@2/base/n1/wedge/s5/c30/sp2/gusty"
+    flights = tmp_path / "flights.jsonl"
+    flights.write_text(json.dumps({"episode": key, "wind": 0, "outcome": "crash-obstacle"}) + "\n"
+                       + json.dumps({"episode": key, "wind": 1, "outcome": "timeout"}) + "\n")
+    out = tmp_path / "causes.jsonl"
+    assert _module("crash_causes", monkeypatch).main([str(flights), "--suite", suite, "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert text.startswith("1 flights with a collision") and f"replay ended timeout, not in a collision: {key}" in text
+    assert [json.loads(line) for line in out.read_text().splitlines()] == [
+        {"episode": key, "wind": 0, "outcome": "timeout"}]
+
+
+@pytest.mark.parametrize("content, message", [
+    (None, "cannot read"),
+    ("not json\n", ":1: neither a gust_seeds.py flight record nor a leaderboard result"),
+    ('{"episode": "forest@2/-/n3/line/s1/c900/sp2", "outcome": "timeout"}\n', "is not in --suite")])
+def test_crash_causes_refuses_bad_files_in_one_line(content, message, tmp_path, monkeypatch, capsys):
+    suite = _one_episode_suite(tmp_path, "classic-2d@2", 5, disturbance="gusty", difficulty="base")
+    path = tmp_path / "flights.jsonl"
+    if content is not None:
+        path.write_text(content)
+    assert _module("crash_causes", monkeypatch).main([str(path), "--suite", suite]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and message in err[0]
