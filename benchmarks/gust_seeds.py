@@ -61,7 +61,7 @@ def fly(episode: dict, k: int, overrides: dict) -> dict:
 
 def parse_overrides(items: list[str]) -> dict:
     """``name=value`` pairs of ExpertConfig fields, or ``part.name=value`` of a field of its ``dwa``, ``vfh`` or
-    ``astar`` config, each value converted to the type of the field's default."""
+    ``astar`` config, each value converted to the type of the field's default (a choice's is checked by the config)."""
     base = ExpertConfig()
     out, parts = {}, {}
     for item in items:
@@ -69,9 +69,9 @@ def parse_overrides(items: list[str]) -> dict:
         part, dot, field = name.rpartition(".")
         owner = (getattr(base, part) if part in PARTS else None) if dot else base
         default = getattr(owner, field) if owner is not None and field in {f.name for f in fields(owner)} else None
-        if not sep or not isinstance(default, (bool, int, float)):
-            raise ValueError(f"--set {item!r}: expected name=value with name a number or flag field of ExpertConfig, "
-                             "or of its dwa, vfh or astar config as part.name")
+        if not sep or not isinstance(default, (bool, int, float, str)):
+            raise ValueError(f"--set {item!r}: expected name=value with name a number, flag or choice field of "
+                             "ExpertConfig, or of its dwa, vfh or astar config as part.name")
         kind = type(default)
         try:
             value = (text.lower() in ("1", "true", "yes")) if kind is bool else kind(text)

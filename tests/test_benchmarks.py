@@ -234,3 +234,11 @@ def test_crash_causes_refuses_bad_files_in_one_line(content, message, tmp_path, 
     assert _module("crash_causes", monkeypatch).main([str(path), "--suite", suite]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: ") and message in err[0]
+
+
+def test_gust_seeds_sets_number_flag_and_choice_fields_and_names_a_bad_one(monkeypatch):
+    gs = _module("gust_seeds", monkeypatch)
+    out = gs.parse_overrides(["e0=3", "park_turn=0", "follower_speed_axis=own", "dwa.beta=0.5"])
+    assert (out["e0"], out["park_turn"], out["follower_speed_axis"], out["dwa"].beta) == (3.0, False, "own", 0.5)
+    with pytest.raises(ValueError, match="follower_speed_axis='nose': expected one of"):
+        gs.parse_overrides(["follower_speed_axis=nose"])
