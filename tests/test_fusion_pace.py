@@ -127,14 +127,13 @@ def test_a_follower_filing_at_its_place_on_the_trail_does_not_slow_the_leader():
 
 
 @pytest.mark.parametrize("offset, psi, v_ref", [
-    ((2.0, 0.0), math.pi, {"leader": 0.0, "own": 0.6, "larger": 0.6}),   # 2 m ahead of its slot, turned toward it
-    ((-1.0, 0.0), 0.0, {"leader": 0.9, "own": 0.9, "larger": 0.9}),      # 1 m behind, nose along the leader's
-    ((0.0, -2.0), math.pi / 2, {"leader": 0.4, "own": 1.0, "larger": 1.0}),   # 2 m beside, nose at it: 0 + 0.5 x 2
-    ((-1.0, 0.0), math.pi / 2, {"leader": 0.9, "own": 0.0, "larger": 0.9})])  # 1 m behind, nose abeam
+    ((2.0, 0.0), math.pi, {"leader": 0.0, "own": 0.6}),   # 2 m ahead of its slot, turned round toward it
+    ((-1.0, 0.0), 0.0, {"leader": 0.9, "own": 0.9}),      # 1 m behind, nose along the leader's: the spec's law
+    ((0.0, -2.0), math.pi / 2, {"leader": 0.4, "own": 1.0})])   # 2 m beside, nose at it: 0 + 0.5 x 2
 def test_follower_speed_axis_tracks_the_slot_along_the_followers_own_nose(offset, psi, v_ref):
     """The leader flies east at 0.4 m/s; (g2) gives v_L + k_f e_par along the leader's heading (``"leader"``); the
     follower's own axis takes the slot-tracking velocity v_L (1, 0) + k_f (slot - p) along its own nose (``"own"``),
-    so a follower turned toward its slot flies to it instead of holding at v = 0; ``"larger"`` the larger of both."""
+    so a follower turned toward its slot flies to it instead of holding at v = 0."""
     from baselines.fusion.controller import FusionExpert as Controller
     from uavform_env import parallel_env
     from uavform_env.scenarios import Mission, Scenario

@@ -19,7 +19,7 @@ ASTAR_LAYERS = ("passable", "band")
 REJOIN_MODES = ("astar", "trail")
 PARK_HEADINGS = ("nearest", "followers")
 LEADER_PACES = ("slot", "trail")
-SPEED_AXES = ("leader", "own", "larger")
+SPEED_AXES = ("leader", "own")
 COLUMN_SHAPES = ("rigid", "trail")
 DOCK_TURN_SPEEDS = ("stopped", "stop")
 
@@ -246,7 +246,7 @@ class ExpertConfig(Config):
                        v_L + k_f e_par with e_par the slot error along the leader's heading; ``"own"``, the component
                        along the follower's own heading of the velocity that tracks the slot, v_L (cos psi_L, sin psi_L)
                        + k_f (slot - p) (the spec's law when both headings agree; a parked leader's slots are closed as
-                       before); ``"larger"``, the larger of the two. With the leader's axis, a follower ahead of its slot that DWA turned round toward it
+                       before). With the leader's axis, a follower ahead of its slot that DWA turned round toward it
                        (its heading goal points back when the slot lies more than k_h behind) read v_ref = 0 and spun at
                        v = 0 for 10 s, 2 m from a slot that hardly moved while the leader turned (random-3d s200217
                        noisy) [X]
