@@ -10,7 +10,6 @@ import pytest
 
 from baselines.expert import ExpertConfig, FusionExpert
 from baselines.fusion.controller import _UAVMemory
-from baselines.dwa import dwa_plan
 from baselines.fusion.kernels import trail_lags
 
 
@@ -124,45 +123,3 @@ def test_a_follower_filing_at_its_place_on_the_trail_does_not_slow_the_leader():
 
     assert errors("trail")[1] == pytest.approx(0.0)
     assert errors("rigid")[1] == pytest.approx(4.0 - math.hypot(2.0, 2.0))
-
-
-@pytest.mark.parametrize("offset, psi, v_ref", [
-    ((2.0, 0.0), math.pi, {"leader": 0.0, "own": 0.6}),   # 2 m ahead of its slot, turned round toward it
-    ((-1.0, 0.0), 0.0, {"leader": 0.9, "own": 0.9}),      # 1 m behind, nose along the leader's: the spec's law
-    ((0.0, -2.0), math.pi / 2, {"leader": 0.4, "own": 1.0})])   # 2 m beside, nose at it: 0 + 0.5 x 2
-def test_follower_speed_axis_tracks_the_slot_along_the_followers_own_nose(offset, psi, v_ref):
-    """The leader flies east at 0.4 m/s; (g2) gives v_L + k_f e_par along the leader's heading (``"leader"``); the
-    follower's own axis takes the slot-tracking velocity v_L (1, 0) + k_f (slot - p) along its own nose (``"own"``),
-    so a follower turned toward its slot flies to it instead of holding at v = 0."""
-    from baselines.fusion.controller import FusionExpert as Controller
-    from uavform_env import parallel_env
-    from uavform_env.scenarios import Mission, Scenario
-
-    scn = Scenario(name="pace-test", version=1, seed=None, bounds_lo=(0.0, 0.0, 0.0), bounds_hi=(40.0, 20.0, 10.0),
-                   resolution=0.2, obstacles=(), mission=Mission(start=(10.0, 10.0, 3.0), goal=(35.0, 10.0, 3.0),
-                                                                 start_heading=0.0, formation="line", spacing=2.0,
-                                                                 n_uavs=2))
-    for axis, expected in v_ref.items():
-        seen = {}
-
-        def spy(state, *args, **kw):
-            seen[tuple(np.round(state[:2], 6))] = kw["v_ref"]
-            return dwa_plan(state, *args, **kw)
-
-        penv = parallel_env(scenario=scn, max_cycles=5)
-        obs, _ = penv.reset(seed=0)
-        env = penv.unwrapped
-        env.states[0, 4] = 0.4                                   # V: the leader flies east at 0.4 m/s
-        slot = env._true_slots()[1]
-        env.states[1, :2] = slot[:2] + np.array(offset)
-        env.states[1, 3] = psi
-        env.broadcast = env.states.copy()                       # what the follower hears (a new onboard snapshot)
-        expert = Controller(ExpertConfig(follower_speed_axis=axis), dwa=spy)
-        expert.reset(penv, 0)
-        expert.act(obs, penv)
-        assert seen[tuple(np.round(env.states[1, :2], 6))] == pytest.approx(expected, abs=1e-9), axis
-
-
-def test_follower_speed_axis_is_validated():
-    with pytest.raises(ValueError, match="follower_speed_axis"):
-        ExpertConfig(follower_speed_axis="nose")

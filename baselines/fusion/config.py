@@ -19,7 +19,6 @@ ASTAR_LAYERS = ("passable", "band")
 REJOIN_MODES = ("astar", "trail")
 PARK_HEADINGS = ("nearest", "followers")
 LEADER_PACES = ("slot", "trail")
-SPEED_AXES = ("leader", "own")
 COLUMN_SHAPES = ("rigid", "trail")
 DOCK_TURN_SPEEDS = ("stopped", "stop")
 
@@ -242,14 +241,6 @@ class ExpertConfig(Config):
                        slot errors and held the leader at ``min_leader_scale`` for 50 s and more; a follower held behind
                        an obstacle is still waited for (pacing only followers farther than their slots' range lost calm
                        episodes that way) [X]
-    follower_speed_axis  the axis of a follower's (g2) speed reference while its leader flies: ``"leader"``, the spec's
-                       v_L + k_f e_par with e_par the slot error along the leader's heading; ``"own"``, the component
-                       along the follower's own heading of the velocity that tracks the slot, v_L (cos psi_L, sin psi_L)
-                       + k_f (slot - p) (the spec's law when both headings agree; a parked leader's slots are closed as
-                       before). With the leader's axis, a follower ahead of its slot that DWA turned round toward it
-                       (its heading goal points back when the slot lies more than k_h behind) read v_ref = 0 and spun at
-                       v = 0 for 10 s, 2 m from a slot that hardly moved while the leader turned (random-3d s200217
-                       noisy) [X]
     guard_gust_time    ``rules.drift_guard``'s clearance (``guard_clearance``) grows by ``guard_gust_time`` (s) x
                        the RMS drift (``rules.gust_speed``): gust bursts of 2-3 times the RMS drift carried UAVs braking
                        0.5-1 m from a tree or wall into it before a 20 deg/s turn could point them away [X]
@@ -397,7 +388,6 @@ class ExpertConfig(Config):
     gust_braking: float = 0.1
     # -- the leader's pace at bends (issue 13, session 9 "s9dogleg")
     leader_pace: str = "trail"
-    follower_speed_axis: str = "leader"
     # -- gusts (issue 13, session 9 "s9gusty")
     wind_margin_share: float = 0.8
     fence_margin: bool = True
@@ -419,7 +409,6 @@ class ExpertConfig(Config):
         "rejoin": one_of(REJOIN_MODES),
         "park_heading": one_of(PARK_HEADINGS),
         "leader_pace": one_of(LEADER_PACES),
-        "follower_speed_axis": one_of(SPEED_AXES),
         "column_shape": one_of(COLUMN_SHAPES),
         "dock_turn_speed": one_of(DOCK_TURN_SPEEDS),
         "dwa_map_level": integer(0, 4),

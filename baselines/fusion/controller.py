@@ -643,14 +643,10 @@ class FusionExpert(OnboardPolicy):
                 mem.on_path = True
                 return guide, guide, None, None
         e_par = float((slot_now - view.state[:2]) @ heading_l) if e_file is None else e_file
-        v_lead = lead[V]
         if not lead_moving:                                     # closing on a parked slot, from any side
             to_slot = slot_now - view.state[:2]
             e_par = float(np.linalg.norm(to_slot)) * max(0.0, math.cos(bearing_error(view.state, to_slot)))
-        elif e_file is None and cfg.follower_speed_axis == "own":   # the slot-tracking velocity along its own nose
-            nose = np.array([math.cos(view.state[PSI]), math.sin(view.state[PSI])])
-            v_lead, e_par = float(lead[V] * (heading_l @ nose)), float((slot_now - view.state[:2]) @ nose)
-        v_ref = clamp(v_lead + cfg.k_f * e_par, 0.0, lim.v_max)
+        v_ref = clamp(lead[V] + cfg.k_f * e_par, 0.0, lim.v_max)
         arriving = math.hypot(view.goal[0] - lead[0], view.goal[1] - lead[1]) < cfg.dock_radius
         v_cap = _slot_brake_cap(lead[V], math.hypot(slot_now[0] - view.state[0], slot_now[1] - view.state[1]),
                                 lim.a_max) if cfg.slot_brake and arriving else None
