@@ -238,7 +238,7 @@ def test_crash_causes_refuses_bad_files_in_one_line(content, message, tmp_path, 
 
 def test_gust_seeds_sets_number_flag_and_choice_fields_and_names_a_bad_one(monkeypatch):
     gs = _module("gust_seeds", monkeypatch)
-    out = gs.parse_overrides(["e0=3", "park_turn=0", "follower_speed_axis=own", "dwa.beta=0.5"])
-    assert (out["e0"], out["park_turn"], out["follower_speed_axis"], out["dwa"].beta) == (3.0, False, "own", 0.5)
-    with pytest.raises(ValueError, match="follower_speed_axis='nose': expected one of"):
-        gs.parse_overrides(["follower_speed_axis=nose"])
+    out = gs.parse_overrides(["e0=3", "park_turn=0", "leader_pace=slot", "dwa.beta=0.5"])
+    assert (out["e0"], out["park_turn"], out["leader_pace"], out["dwa"].beta) == (3.0, False, "slot", 0.5)
+    with pytest.raises(ValueError, match="leader_pace=.nose.: expected one of"):
+        gs.parse_overrides(["leader_pace=nose"])
