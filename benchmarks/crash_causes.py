@@ -2,7 +2,7 @@
 (issue 13: "where a target is missed, say which missions fail and why").
 
     python benchmarks/crash_causes.py FLIGHTS.jsonl... [--suite v1-dev] [--set NAME=VALUE ...] [--window 3]
-                                      [--workers 2] [--out causes.jsonl]
+                                      [--workers 2] [--out causes.jsonl] [--plot causes.png]
 
 FLIGHTS are ``gust_seeds.py --out`` files, or a leaderboard's ``results.jsonl`` (its ``expert`` records: the
 suite's own flights, wind 0). Every flight there that ended in a collision is flown again (its episode, wind seed
@@ -12,12 +12,14 @@ each step's displacement is the wind's (``env.drift`` x dt: the wind its autopil
 own (the rest: the dynamics of its commands). The clearance it lost is split to first order along the way: the
 gradient of what it collided on (the world's signed distance for an obstacle, the distance to the nearest x/y bound
 for the edge of the world, the separation for another UAV, whose displacement counts too) dotted with each part,
-summed over the window. Verdict "wind" when the wind's part of the loss is the larger, else "flown".
+summed over the window. Verdict "wind" when the wind's part of the loss is the larger, else "flown". ``--plot``
+draws each collision's two parts against the clearance it had.
 """
 
 from __future__ import annotations
 
 import argparse
+import io
 import json
 import sys
 from collections import Counter
@@ -28,7 +30,7 @@ from gust_seeds import parse_overrides, wind_seed
 from uavform_env.collisions import CRASH_CAUSES
 from uavform_env.dynamics import V
 from uavform_env.evaluation.suites import Episode, load_suite
-from uavform_env.files import atomic_write_text
+from uavform_env.files import atomic_write_bytes, atomic_write_text
 from uavform_env.parallel import imap_unordered
 
 _STEP = 1e-4  # finite-difference step (m) of the clearance gradients
@@ -116,6 +118,35 @@ def explain(episode: dict, k: int, overrides: dict, window: float) -> dict:
                 verdict=_verdict(wind, own))
 
 
+def plot(records: list[dict], window: float, title: str, path: str) -> None:
+    """Each split collision's clearance lost to the wind and to its own motion against the clearance it had
+    ``window`` s before the contact; above the diagonal, that part alone took more than the UAV had."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    split = [r for r in records if "verdict" in r]
+    before = np.array([r["clearance_before"] for r in split])
+    fig, ax = plt.subplots(figsize=(6.0, 5.0))
+    top = max([1.0, *before, *(r["wind_loss"] for r in split), *(r["own_loss"] for r in split)]) * 1.1
+    ax.plot([0.0, top], [0.0, top], color="0.5", lw=0.8, ls="--", label="lost = clearance before")
+    ax.scatter(before, [r["wind_loss"] for r in split], color="tab:blue", label="lost to the wind")
+    ax.scatter(before, [r["own_loss"] for r in split], color="tab:red", marker="x", label="lost to its own motion")
+    ax.axhline(0.0, color="0.8", lw=0.8)
+    ax.set_xlim(0.0, top)
+    ax.set_xlabel(f"clearance {window:g} s before the contact (m)")
+    ax.set_ylabel(f"clearance lost over those {window:g} s (m)")
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=8, loc="upper left")
+    ax.grid(True, lw=0.3, alpha=0.5)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90)
+    plt.close(fig)
+    atomic_write_bytes(path, buf.getvalue())
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("flights", nargs="+", help="gust_seeds.py --out files")
@@ -125,6 +156,7 @@ def main(argv=None) -> int:
     parser.add_argument("--window", type=float, default=3.0, help="seconds before the contact (default 3)")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--out", default=None, help="write one JSON line per collision here")
+    parser.add_argument("--plot", default=None, help="draw the split collisions into this PNG")
     args = parser.parse_args(argv)
     try:
         if args.workers < 1:
@@ -159,6 +191,10 @@ def main(argv=None) -> int:
     if args.out:
         atomic_write_text(args.out, "".join(json.dumps(r) + "\n" for r in records))
     split = [r for r in records if "verdict" in r]
+    if args.plot:
+        votes = Counter(r["verdict"] for r in split)
+        plot(records, args.window, f"{args.suite}: {len(split)} collisions of the expert, {votes['wind']} carried by "
+             f"the wind, {votes['flown']} flown in", args.plot)
     print(f"{len(crashed)} flights with a collision; over the last {args.window:g} s before the contact:")
     print("| cause | collisions | carried by the wind | flown in | clearance before (median, m) | "
           "lost to the wind (median, m) | lost to own motion (median, m) | own speed (median of means, m/s) |")

@@ -215,7 +215,10 @@ def test_crash_causes_replays_each_collision_and_reports_a_replay_that_differs(t
     flights.write_text(json.dumps({"episode": key, "wind": 0, "outcome": "crash-obstacle"}) + "\n"
                        + json.dumps({"episode": key, "wind": 1, "outcome": "timeout"}) + "\n")
     out = tmp_path / "causes.jsonl"
-    assert _module("crash_causes", monkeypatch).main([str(flights), "--suite", suite, "--out", str(out)]) == 0
+    png = tmp_path / "causes.png"
+    assert _module("crash_causes", monkeypatch).main([str(flights), "--suite", suite, "--out", str(out),
+                                                      "--plot", str(png)]) == 0
+    assert png.read_bytes().startswith(b"\x89PNG")
     text = capsys.readouterr().out
     assert text.startswith("1 flights with a collision") and f"replay ended timeout, not in a collision: {key}" in text
     assert [json.loads(line) for line in out.read_text().splitlines()] == [
