@@ -12,7 +12,9 @@ seeds: wind 0 is the episode's own seed (its flight is the suite's, bit for bit)
 earlier one (``compare_flights.py`` reads both files as one side). The policy is the expert (``FusionExpert``) with
 the ``--set`` overrides of its ``ExpertConfig`` fields (``part.name`` for a field of its ``dwa``, ``vfh`` or
 ``astar`` config). Printed: flights, flights with a collision, successes, the median over flights of the formation
-error's RMS (``episode_metrics``), and per episode the outcomes of its winds (s success, t time-out, c crash);
+error's RMS (``episode_metrics``); the end game of the flights that failed after their leader came within r_goal of
+the goal (how long before the end, how often the leader was within r_goal and the followers all within e_f since:
+success needs both at once); and per episode the outcomes of its winds (s success, t time-out, c crash);
 ``--out`` keeps one JSON line per flight (written whole or not at all), which ``benchmarks/compare_flights.py``
 pairs with another run's flight by flight.
 """
@@ -51,12 +53,45 @@ def fly(episode: dict, k: int, overrides: dict) -> dict:
 
     ep = Episode(**episode)
     penv = parallel_env(**ep.env_kwargs(), layout_seed=ep.seed)
+    reach = {"step": None, "steps": 0, "leader": 0, "followers": 0}
+
+    def after_reach(env):
+        """From the first step the leader is within r_goal of the goal: how often it is, and all live followers
+        within e_f of their slots (success needs both at once)."""
+        leader_in = float(np.linalg.norm(env.states[0, :3] - env.goal)) < env.config.episode.r_goal
+        if reach["step"] is None and leader_in:
+            reach["step"] = env.step_count
+        if reach["step"] is not None:
+            live = ~env.history["crashed"][-1][1:]
+            reach["steps"] += 1
+            reach["leader"] += leader_in
+            reach["followers"] += bool((env.history["formation_error"][-1][1:][live] < env.config.formation.e_f).all())
+
     start = time.perf_counter()
-    run_episode(penv, FusionExpert(ExpertConfig(**overrides)), wind_seed(ep.seed, k))
-    outcome, detail = episode_outcome(penv.unwrapped)
+    run_episode(penv, FusionExpert(ExpertConfig(**overrides)), wind_seed(ep.seed, k), on_step=after_reach)
+    env = penv.unwrapped
+    outcome, detail = episode_outcome(env)
+    reached = reach["step"] is not None
     return {"episode": ep.key, "scenario": ep.scenario, "preset": ep.wind, "wind": k, "outcome": outcome,
-            "detail": detail, "steps": int(penv.unwrapped.step_count), "wall_time": time.perf_counter() - start,
-            "formation_error_rms": episode_metrics(penv.unwrapped)["formation_error_rms"]}
+            "detail": detail, "steps": int(env.step_count), "wall_time": time.perf_counter() - start,
+            "formation_error_rms": episode_metrics(env)["formation_error_rms"], "n_uavs": ep.n_uavs,
+            "after_reach_s": (env.step_count - reach["step"]) * env.config.uav.dt if reached else None,
+            "after_reach_leader_in": reach["leader"] / reach["steps"] if reached else None,
+            "after_reach_followers_in": reach["followers"] / reach["steps"] if reached else None}
+
+
+def end_game(records: list[dict]) -> str:
+    """One line on the flights whose leader came within r_goal of the goal and that still failed (records that
+    carry ``after_reach_s``)."""
+    late = [r for r in records if r.get("after_reach_s") is not None and r["outcome"] != "success"]
+    if not late:
+        return "no flight failed after its leader came within r_goal of the goal"
+    never = sum(r["after_reach_followers_in"] == 0.0 for r in late)
+    wait = np.median([r["after_reach_s"] for r in late])
+    return (f"{len(late)} flights failed after the leader came within r_goal of the goal (median {wait:.0f} s before "
+            f"the end; UAVs {min(r['n_uavs'] for r in late)}-{max(r['n_uavs'] for r in late)}): in {never} of them the "
+            f"followers were never all within e_f at once; the leader was within r_goal in a median "
+            f"{100 * np.median([r['after_reach_leader_in'] for r in late]):.0f} % of those steps")
 
 
 def parse_overrides(items: list[str]) -> dict:
@@ -121,6 +156,7 @@ def main(argv=None) -> int:
     print(f"overrides {' '.join(args.set) or 'none'}; {len(episodes)} episodes x {args.winds} winds = "
           f"{len(records)} flights: {len(crashed)} with a collision, {len(success)} successes; formation error RMS "
           + (f"median {np.median(errors):.2f} m (flights with followers)" if errors else "- (no followers)"))
+    print(end_game(records))
     for e in episodes:
         marks = "".join(MARKS.get(r["outcome"], "c") for r in records if r["episode"] == e.key)
         print(f"  {marks}  {e.key}")
