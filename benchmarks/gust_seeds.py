@@ -14,7 +14,7 @@ the ``--set`` overrides of its ``ExpertConfig`` fields (``part.name`` for a fiel
 ``astar`` config). Printed: flights, flights with a collision, successes, the median over flights of the formation
 error's RMS (``episode_metrics``); the end game of the flights that failed after their leader came within r_goal of
 the goal (how long before the end, how often the leader was within r_goal and the followers all within e_f since:
-success needs both at once); and per episode the outcomes of its winds (s success, t time-out, c crash);
+success needs both at once; whether a live follower never came within e_f after the arrival); and per episode the outcomes of its winds (s success, t time-out, c crash);
 ``--out`` keeps one JSON line per flight (written whole or not at all), which ``benchmarks/compare_flights.py``
 pairs with another run's flight by flight.
 """
@@ -53,19 +53,21 @@ def fly(episode: dict, k: int, overrides: dict) -> dict:
 
     ep = Episode(**episode)
     penv = parallel_env(**ep.env_kwargs(), layout_seed=ep.seed)
-    reach = {"step": None, "steps": 0, "leader": 0, "followers": 0}
+    reach = {"step": None, "steps": 0, "leader": 0, "followers": 0, "ever": np.zeros(ep.n_uavs - 1, dtype=bool)}
 
     def after_reach(env):
-        """From the first step the leader is within r_goal of the goal: how often it is, and all live followers
-        within e_f of their slots (success needs both at once)."""
+        """From the first step the leader is within r_goal of the goal: how often it is, all live followers within
+        e_f of their slots (success needs both at once), and which followers have been within e_f since."""
         leader_in = float(np.linalg.norm(env.states[0, :3] - env.goal)) < env.config.episode.r_goal
         if reach["step"] is None and leader_in:
             reach["step"] = env.step_count
         if reach["step"] is not None:
             live = ~env.history["crashed"][-1][1:]
+            near = env.history["formation_error"][-1][1:] < env.config.formation.e_f
             reach["steps"] += 1
             reach["leader"] += leader_in
-            reach["followers"] += bool((env.history["formation_error"][-1][1:][live] < env.config.formation.e_f).all())
+            reach["followers"] += bool(near[live].all())
+            reach["ever"] |= near & live
 
     start = time.perf_counter()
     run_episode(penv, FusionExpert(ExpertConfig(**overrides)), wind_seed(ep.seed, k), on_step=after_reach)
@@ -77,7 +79,8 @@ def fly(episode: dict, k: int, overrides: dict) -> dict:
             "formation_error_rms": episode_metrics(env)["formation_error_rms"], "n_uavs": ep.n_uavs,
             "after_reach_s": (env.step_count - reach["step"]) * env.config.uav.dt if reached else None,
             "after_reach_leader_in": reach["leader"] / reach["steps"] if reached else None,
-            "after_reach_followers_in": reach["followers"] / reach["steps"] if reached else None}
+            "after_reach_followers_in": reach["followers"] / reach["steps"] if reached else None,
+            "after_reach_followers_never": int((~reach["ever"] & ~env.crashed[1:]).sum()) if reached else None}
 
 
 def end_game(records: list[dict]) -> str:
@@ -88,10 +91,16 @@ def end_game(records: list[dict]) -> str:
         return "no flight failed after its leader came within r_goal of the goal"
     never = sum(r["after_reach_followers_in"] == 0.0 for r in late)
     wait = np.median([r["after_reach_s"] for r in late])
-    return (f"{len(late)} flights failed after the leader came within r_goal of the goal (median {wait:.0f} s before "
+    line = (f"{len(late)} flights failed after the leader came within r_goal of the goal (median {wait:.0f} s before "
             f"the end; UAVs {min(r['n_uavs'] for r in late)}-{max(r['n_uavs'] for r in late)}): in {never} of them the "
             f"followers were never all within e_f at once; the leader was within r_goal in a median "
             f"{100 * np.median([r['after_reach_leader_in'] for r in late]):.0f} % of those steps")
+    split = [r for r in late if r.get("after_reach_followers_never") is not None]
+    if not split:
+        return line
+    lost = sum(r["after_reach_followers_never"] > 0 for r in split)
+    return (f"{line}; in {lost} of {len(split)} a live follower never came within e_f of its slot after the arrival "
+            f"(in the other {len(split) - lost} each one did, but not all together with the leader)")
 
 
 def parse_overrides(items: list[str]) -> dict:

@@ -157,7 +157,8 @@ def test_gust_seeds_flies_each_wind_and_writes_records_compare_flights_reads(tmp
     records = [json.loads(line) for line in out.read_text().splitlines()]
     assert sorted(r["wind"] for r in records) == [0, 1] and all(r["steps"] <= 30 for r in records)
     assert {(r["scenario"], r["preset"]) for r in records} == {("classic-2d@2", "gusty")}
-    assert all(r["after_reach_s"] is None and r["n_uavs"] == 1 for r in records)   # 3 s flights: no goal reached
+    assert all(r["after_reach_s"] is None and r["after_reach_followers_never"] is None and r["n_uavs"] == 1
+               for r in records)                                               # 3 s flights: no goal reached
     cf = _module("compare_flights", monkeypatch)
     assert cf.main([str(out), "--against", str(out)]) == 0
     assert capsys.readouterr().out.startswith("2 paired flights")
@@ -251,13 +252,21 @@ def test_gust_seeds_sets_number_flag_and_choice_fields_and_names_a_bad_one(monke
 def test_gust_seeds_end_game_counts_the_flights_that_failed_after_the_leader_reached_the_goal(monkeypatch):
     gs = _module("gust_seeds", monkeypatch)
     base = {"steps": 900, "n_uavs": 5}
-    records = [dict(base, outcome="success", after_reach_s=3.0, after_reach_leader_in=1.0, after_reach_followers_in=0.5),
-               dict(base, outcome="timeout", after_reach_s=None, after_reach_leader_in=None, after_reach_followers_in=None),
-               dict(base, outcome="timeout", after_reach_s=20.0, after_reach_leader_in=0.2, after_reach_followers_in=0.0),
+    records = [dict(base, outcome="success", after_reach_s=3.0, after_reach_leader_in=1.0, after_reach_followers_in=0.5,
+                    after_reach_followers_never=0),
+               dict(base, outcome="timeout", after_reach_s=None, after_reach_leader_in=None, after_reach_followers_in=None,
+                    after_reach_followers_never=None),
+               dict(base, outcome="timeout", after_reach_s=20.0, after_reach_leader_in=0.2, after_reach_followers_in=0.0,
+                    after_reach_followers_never=2),
                dict(base, outcome="timeout", after_reach_s=40.0, after_reach_leader_in=0.4, after_reach_followers_in=0.1,
-                    n_uavs=9),
+                    after_reach_followers_never=0, n_uavs=9),
                {"outcome": "timeout", "steps": 900}]                          # an older record: not counted
-    assert gs.end_game(records) == ("2 flights failed after the leader came within r_goal of the goal (median 30 s "
-                                    "before the end; UAVs 5-9): in 1 of them the followers were never all within e_f "
-                                    "at once; the leader was within r_goal in a median 30 % of those steps")
+    line = ("2 flights failed after the leader came within r_goal of the goal (median 30 s before the end; UAVs 5-9): "
+            "in 1 of them the followers were never all within e_f at once; the leader was within r_goal in a median "
+            "30 % of those steps")
+    assert gs.end_game(records) == (line + "; in 1 of 2 a live follower never came within e_f of its slot after the "
+                                    "arrival (in the other 1 each one did, but not all together with the leader)")
+    for r in records[2:4]:                                                    # a session-25 record: no split
+        del r["after_reach_followers_never"]
+    assert gs.end_game(records) == line
     assert gs.end_game(records[:2]) == "no flight failed after its leader came within r_goal of the goal"
