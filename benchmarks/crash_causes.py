@@ -75,22 +75,18 @@ def explain(episode: dict, k: int, overrides: dict, window: float) -> dict:
     penv = parallel_env(**ep.env_kwargs(), layout_seed=ep.seed)
     env = penv.unwrapped
     track = {"pos": [], "drift": [], "speed": [], "task": [], "crash": None}
+    expert = FusionExpert(ExpertConfig(**overrides))
 
     def on_step(e):
         track["pos"].append(e.states[:, :3].copy())
         track["drift"].append(e.drift.copy())
         track["speed"].append(e.states[:, V].copy())
+        track["task"].append([_task(expert.diagnostics.get(a, {})) for a in e.possible_agents])
         if track["crash"] is None and e.crashed.any():
             i = int(np.flatnonzero(e.crashed)[0])
             track["crash"] = (i, CRASH_CAUSES[int(e.crash_cause[i])], len(track["pos"]) - 1)
 
-    expert = FusionExpert(ExpertConfig(**overrides))
-
-    def on_step_with_task(e):
-        on_step(e)
-        track["task"].append([_task(expert.diagnostics.get(a, {})) for a in e.possible_agents])
-
-    run_episode(penv, expert, wind_seed(ep.seed, k), on_step=on_step_with_task)
+    run_episode(penv, expert, wind_seed(ep.seed, k), on_step=on_step)
     record = {"episode": ep.key, "wind": k, "outcome": episode_outcome(env)[0]}
     if track["crash"] is None:
         return record
@@ -210,8 +206,9 @@ def main(argv=None) -> int:
         if "verdict" not in r:
             print(f"  replay ended {r['outcome']}, not in a collision: {r['episode']} wind {r['wind']}")
         else:
-            print(f"  {r['verdict']:5s} {r['task']:7s} uav {r['uav']} t={r['t']:5.1f} s  clearance {r['clearance_before']:5.2f}  "
-                  f"wind {r['wind_loss']:5.2f}  own {r['own_loss']:5.2f}  {r['episode']} wind {r['wind']}")
+            print(f"  {r['verdict']:5s} {r['task']:7s} uav {r['uav']} t={r['t']:5.1f} s  "
+                  f"clearance {r['clearance_before']:5.2f}  wind {r['wind_loss']:5.2f}  own {r['own_loss']:5.2f}  "
+                  f"{r['episode']} wind {r['wind']}")
     return 0
 
 

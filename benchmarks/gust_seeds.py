@@ -14,7 +14,8 @@ the ``--set`` overrides of its ``ExpertConfig`` fields (``part.name`` for a fiel
 ``astar`` config). Printed: flights, flights with a collision, successes, the median over flights of the formation
 error's RMS (``episode_metrics``); the end game of the flights that failed after their leader came within r_goal of
 the goal (how long before the end, how often the leader was within r_goal and the followers all within e_f since:
-success needs both at once; whether a live follower never came within e_f after the arrival); and per episode the outcomes of its winds (s success, t time-out, c crash);
+success needs both at once; whether a live follower never came within e_f after the arrival); and per episode the
+outcomes of its winds (s success, t time-out, c crash);
 ``--out`` keeps one JSON line per flight (written whole or not at all), which ``benchmarks/compare_flights.py``
 pairs with another run's flight by flight.
 """

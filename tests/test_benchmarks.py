@@ -252,14 +252,11 @@ def test_gust_seeds_sets_number_flag_and_choice_fields_and_names_a_bad_one(monke
 def test_gust_seeds_end_game_counts_the_flights_that_failed_after_the_leader_reached_the_goal(monkeypatch):
     gs = _module("gust_seeds", monkeypatch)
     base = {"steps": 900, "n_uavs": 5}
-    records = [dict(base, outcome="success", after_reach_s=3.0, after_reach_leader_in=1.0, after_reach_followers_in=0.5,
-                    after_reach_followers_never=0),
-               dict(base, outcome="timeout", after_reach_s=None, after_reach_leader_in=None, after_reach_followers_in=None,
-                    after_reach_followers_never=None),
-               dict(base, outcome="timeout", after_reach_s=20.0, after_reach_leader_in=0.2, after_reach_followers_in=0.0,
-                    after_reach_followers_never=2),
-               dict(base, outcome="timeout", after_reach_s=40.0, after_reach_leader_in=0.4, after_reach_followers_in=0.1,
-                    after_reach_followers_never=0, n_uavs=9),
+    fields = ("after_reach_s", "after_reach_leader_in", "after_reach_followers_in", "after_reach_followers_never")
+    records = [dict(base, outcome="success", **dict(zip(fields, (3.0, 1.0, 0.5, 0)))),
+               dict(base, outcome="timeout", **dict(zip(fields, (None, None, None, None)))),
+               dict(base, outcome="timeout", **dict(zip(fields, (20.0, 0.2, 0.0, 2)))),
+               dict(base, outcome="timeout", **dict(zip(fields, (40.0, 0.4, 0.1, 0))), n_uavs=9),
                {"outcome": "timeout", "steps": 900}]                          # an older record: not counted
     line = ("2 flights failed after the leader came within r_goal of the goal (median 30 s before the end; UAVs 5-9): "
             "in 1 of them the followers were never all within e_f at once; the leader was within r_goal in a median "
