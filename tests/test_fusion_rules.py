@@ -178,6 +178,22 @@ def test_vertical_separation_moves_the_higher_uav_up_and_the_lower_down():
     assert floor.vz == LIM.vz_max                                  # at the band's floor: up
 
 
+def test_vertical_separation_parts_two_uavs_that_each_see_the_other_below():
+    """Climbing together, each UAV sees the other's predicted broadcast a few millimetres below itself: within
+    ``separation_tie`` the index decides, so one climbs and the other descends; without the tie both climbed."""
+    a = view(state=(0.0, 0.0, 3.000, 0.0, 0.0, 0.0, 0.3), alive=[True], index=0, neighbour_ids=[1])
+    b = view(state=(0.6, 0.0, 3.001, 0.0, 0.0, 0.0, 0.3), alive=[True], index=1, neighbour_ids=[0])
+    sees_a, sees_b = np.array([[0.6, 0.0, 2.995]]), np.array([[0.0, 0.0, 2.996]])
+    for cfg, expected in ((CFG, (-LIM.vz_max, LIM.vz_max)), (CFG.with_checked(separation_tie=0.0), (LIM.vz_max,) * 2)):
+        cmd_a, cmd_b = Command(0.3, 0.0, 0.3), Command(0.3, 0.0, 0.3)
+        vertical_separation(cmd_a, cycle(a, movers=sees_a, cfg=cfg))
+        vertical_separation(cmd_b, cycle(b, movers=sees_b, cfg=cfg))
+        assert (cmd_a.vz, cmd_b.vz) == expected
+    apart = Command(0.3, 0.0, 0.0)                     # beyond the tie the altitudes decide, whatever the index
+    vertical_separation(apart, cycle(a, movers=np.array([[0.6, 0.0, 2.8]])))
+    assert apart.vz == LIM.vz_max
+
+
 UNOPPOSED = LIM.replace(wind_authority=0.0)     # the airframe the wind carries whole (drift_persistence = 1)
 
 

@@ -370,6 +370,7 @@ class ExpertConfig(Config):
     glide_slope: float = 0.5
     wind_margin: float = 1.5
     separation_margin: float = 0.3
+    separation_tie: float = 0.1
     guard_clearance: float = 0.4
     guard_speed: float = 0.3
     guard_gust_time: float = 3.0
@@ -422,7 +423,8 @@ class ExpertConfig(Config):
                                             "trail_spacing", "arrive_radius", "stuck_window", "gap_lookahead",
                                             "gap_depth", "gap_margin", "k_gap", "gap_speed", "leader_stopped_speed",
                                             "hold_radius", "hold_release", "hold_gust_time", "k_hold",
-                                            "separation_margin", "hold_drift_time", "hold_search", "glide_slope",
+                                            "separation_margin", "separation_tie", "hold_drift_time", "hold_search",
+                                            "glide_slope",
                                             "wind_margin", "vane_wind",
                                             "approach_radius", "guard_clearance", "guard_speed", "guard_gust_time",
                                             "guard_hover_speed", "path_margin",

@@ -171,8 +171,12 @@ def drift_guard(cmd: Command, c: Cycle) -> None:
 
 
 def vertical_separation(cmd: Command, c: Cycle) -> None:
-    """[X] ``separation_margin``: a live neighbour within R_uu + ``separation_margin`` (3D) is left vertically, at
-    full climb rate away from it (the higher UAV climbs, the lower descends; on a tie the higher index climbs),
+    """[X] ``separation_margin``, ``separation_tie``: a live neighbour within R_uu + ``separation_margin`` (3D) is left
+    vertically, at full climb rate away from it (the higher UAV climbs, the lower descends; within
+    ``separation_tie`` of one altitude the higher index climbs: each UAV compares its own altitude with the
+    neighbour's broadcast, predicted one cycle on at its vz, which misses the cycle's vertical acceleration (up to
+    az_max dt^2 = 5 mm); two UAVs climbing together saw each other 1-9 mm below themselves and both climbed into
+    a collision, forest v1-dev s200068 breeze),
     unless the altitude band or a voxel of the own map within r_uav + r_safe of the point r_uav + r_safe along
     the way closes that direction (then the other way; neither: DWA's command stands).
     DWA's admissibility cannot help a UAV already inside R_uu (every sample is inadmissible, it brakes) and
@@ -187,7 +191,7 @@ def vertical_separation(cmd: Command, c: Cycle) -> None:
         return
     lim = view.limits
     dz = pos[2] - c.movers_pos[m, 2]
-    up = dz > 0.0 if abs(dz) > 1e-6 else view.index > int(view.neighbour_ids[m])
+    up = dz > 0.0 if abs(dz) > max(cfg.separation_tie, 1e-6) else view.index > int(view.neighbour_ids[m])
     margin = lim.r_uav + lim.r_safe
     for sign in ((1.0, -1.0) if up else (-1.0, 1.0)):
         z_next = pos[2] + sign * margin                    # checked every cycle: the next r_uav + r_safe of the way
