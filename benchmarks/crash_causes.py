@@ -19,7 +19,6 @@ draws each collision's two parts against the clearance it had.
 from __future__ import annotations
 
 import argparse
-import io
 import json
 import sys
 from collections import Counter
@@ -30,7 +29,7 @@ from gust_seeds import parse_overrides, wind_seed
 from uavform_env.collisions import CRASH_CAUSES
 from uavform_env.dynamics import V
 from uavform_env.evaluation.suites import Episode, load_suite
-from uavform_env.files import atomic_write_bytes, atomic_write_text
+from uavform_env.files import atomic_write_figure, atomic_write_text
 from uavform_env.parallel import imap_unordered
 
 _STEP = 1e-4  # finite-difference step (m) of the clearance gradients
@@ -137,10 +136,8 @@ def plot(records: list[dict], window: float, title: str, path: str) -> None:
     ax.legend(fontsize=8, loc="upper left")
     ax.grid(True, lw=0.3, alpha=0.5)
     fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90)
+    atomic_write_figure(path, fig, format="png", dpi=90)
     plt.close(fig)
-    atomic_write_bytes(path, buf.getvalue())
 
 
 def main(argv=None) -> int:

@@ -29,7 +29,7 @@ from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
 from uavform_env.evaluation.table import RANKING, ranking_key as leaderboard_key
-from uavform_env.files import append_line, atomic_write_json
+from uavform_env.files import append_line, atomic_write_figure, atomic_write_json
 from uavform_env.formation_v0 import parallel_env
 from uavform_env.parallel import connect_ray
 from uavform_env.rollout import run_episode
@@ -249,10 +249,8 @@ def plot_learning_curve(out: str | os.PathLike) -> Path:
         ax.grid(alpha=0.3)
     fig.tight_layout()
     path = out / "learning_curve.png"
-    tmp = out / ".learning_curve.tmp.png"
-    fig.savefig(tmp, dpi=110)
+    atomic_write_figure(path, fig, format="png", dpi=110)
     plt.close(fig)
-    os.replace(tmp, path)
     return path
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import tempfile
@@ -27,6 +28,15 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def atomic_write_figure(path: str | os.PathLike, fig, **savefig_kwargs) -> None:
+    """A matplotlib figure saved whole or not at all: rendered into memory with ``fig.savefig(**savefig_kwargs)``
+    (the format from ``path``'s suffix unless given), then written with ``atomic_write_bytes``."""
+    savefig_kwargs.setdefault("format", Path(path).suffix.lower().lstrip(".") or "png")
+    buf = io.BytesIO()
+    fig.savefig(buf, **savefig_kwargs)
+    atomic_write_bytes(path, buf.getvalue())
 
 
 def atomic_write_text(path, text: str) -> None:

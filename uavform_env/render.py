@@ -22,7 +22,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch
 from mpl_toolkits.mplot3d.art3d import Line3D, Line3DCollection, Poly3DCollection
 
-from .files import atomic_write_bytes
+from .files import atomic_write_bytes, atomic_write_figure
 from .formation import formation_slots
 
 RENDER_MODES = ("rgb_array", "human")
@@ -490,9 +490,7 @@ def plot_episode(env, path, title: str | None = None) -> Figure:
     fig.legend(handles=_uav_handles(colours) + _legend_handles(names), loc="lower right",
                bbox_to_anchor=(0.995, 0.05), ncols=1 if n <= 10 else 2, fontsize=10)
     fig.suptitle(title if title is not None else _default_title(env, crashed[-1]), fontsize=13)
-    buf = io.BytesIO()
-    fig.savefig(buf, format=fmt)
-    atomic_write_bytes(path, buf.getvalue())
+    atomic_write_figure(path, fig, format=fmt)
     return fig
 
 

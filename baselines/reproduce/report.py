@@ -9,7 +9,6 @@ generated from the records and the config objects that ran, never written by han
 
 from __future__ import annotations
 
-import io
 import math
 from pathlib import Path
 
@@ -17,7 +16,7 @@ import numpy as np
 
 from uavform_env.config import EnvConfig
 from uavform_env.evaluation.table import UNITS, bootstrap_ci, ci_cell
-from uavform_env.files import atomic_write_bytes, atomic_write_json, atomic_write_text
+from uavform_env.files import atomic_write_figure, atomic_write_json, atomic_write_text
 
 from ..expert import ExpertConfig
 from ..paper import PaperConfig
@@ -88,10 +87,8 @@ def _pyplot():
 
 
 def _save(fig, path: Path) -> None:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=80, bbox_inches="tight")
+    atomic_write_figure(path, fig, format="png", dpi=80, bbox_inches="tight")
     _pyplot().close(fig)
-    atomic_write_bytes(path, buf.getvalue())
 
 
 STYLES = ("-", "--", "-.", ":", (0, (6, 2, 1, 2)))   # variants often coincide: dashes keep each visible

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..files import atomic_write_bytes, atomic_write_json, atomic_write_text
+from ..files import atomic_write_figure, atomic_write_json, atomic_write_text
 from ..metrics import METRIC_NAMES
 from .suites import Suite
 
@@ -371,10 +371,8 @@ def plot(summary: dict, path: str | os.PathLike) -> None:
         ax.axis("off")
     fig.suptitle(f"suite {summary['suite']} ({summary['suite_hash']}): mean and 95% bootstrap CI")
     fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90)
+    atomic_write_figure(path, fig, format="png", dpi=90)
     plt.close(fig)
-    atomic_write_bytes(path, buf.getvalue())
 
 
 def write_tables(suite: Suite, records: list[dict], out: str | os.PathLike) -> dict:
