@@ -59,7 +59,7 @@ def fly(episode: dict, k: int, overrides: dict) -> dict:
     def after_reach(env):
         """From the first step the leader is within r_goal of the goal: how often it is, all live followers within
         e_f of their slots (success needs both at once), and which followers have been within e_f since."""
-        leader_in = float(np.linalg.norm(env.states[0, :3] - env.goal)) < env.config.episode.r_goal
+        leader_in = env.goal_distance() < env.config.episode.r_goal
         if reach["step"] is None and leader_in:
             reach["step"] = env.step_count
         if reach["step"] is not None:

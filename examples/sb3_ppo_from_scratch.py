@@ -63,7 +63,7 @@ def main(argv: list[str] | None = None) -> dict:
     env = penv.unwrapped
     result = {"trained_agent_steps": int(model.num_timesteps), "steps": env.step_count, "success": env.success,
               "crashed": int(np.count_nonzero(env.crashed)),
-              "leader_goal_distance_m": float(np.linalg.norm(env.states[0, :3] - env.goal))}
+              "leader_goal_distance_m": env.goal_distance()}
     print(f"trained {result['trained_agent_steps']} agent-steps, saved {args.out}; evaluation episode: "
           f"{result['steps']} steps, success {result['success']}, {result['crashed']} crashed, the leader ended "
           f"{result['leader_goal_distance_m']:.1f} m from the goal")

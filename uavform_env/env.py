@@ -226,7 +226,7 @@ class FormationEnv(ParallelEnv):
                         "w": [self.states[:, W].copy()], "formation_error": [ferr],
                         "clearance": [clearance], "crashed": [self.crashed.copy()]}
         obs = self._observe()
-        infos = self._infos(clearance, separations(self.states), ferr, self._target_dist, self._goal_distance(),
+        infos = self._infos(clearance, separations(self.states), ferr, self._target_dist, self.goal_distance(),
                             truncated=False)
         return obs, infos
 
@@ -281,7 +281,7 @@ class FormationEnv(ParallelEnv):
 
         self._sense()
         ferr, target_dist = slot_distances(self.states, self._true_slots(), self.goal)
-        goal_dist = self._goal_distance()
+        goal_dist = self.goal_distance()
         leader_ok = self.active[0] and goal_dist < cfg.episode.r_goal
         followers_ok = (ferr[1:][self.active[1:]] < cfg.formation.e_f).all()
         self.success = bool(leader_ok and followers_ok and not self.crashed.any())
@@ -361,8 +361,8 @@ class FormationEnv(ParallelEnv):
     def _clearance(self) -> np.ndarray:
         return self.world.clearance(self.states[:, :3]) - self.config.uav.r_uav
 
-    def _goal_distance(self) -> float:
-        """The leader's 3D distance to the goal."""
+    def goal_distance(self) -> float:
+        """The leader's 3D distance to the goal (the infos' ``goal_distance``)."""
         return float(np.linalg.norm(self.states[0, :3] - self.goal))
 
     def _true_slots(self) -> np.ndarray:

@@ -33,7 +33,7 @@ def run_episode(penv, policy, seed: int, *, time_limit: float | None = None, pro
             on_step(env)
         if progress is not None:
             progress.update(1)
-            progress.set_postfix(goal=f"{float(np.linalg.norm(env.states[0, :3] - env.goal)):.1f}m", refresh=False)
+            progress.set_postfix(goal=f"{env.goal_distance():.1f}m", refresh=False)
         if time_limit is not None and time.perf_counter() - start > time_limit:
             raise EpisodeTimeout(f"episode exceeded its time limit of {time_limit:g} s at step {env.step_count}")
     return episode_metrics(env, np.asarray(planning))
