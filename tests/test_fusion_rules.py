@@ -10,7 +10,9 @@ import pytest
 from baselines.dwa import dwa_plan
 from baselines.fusion import ExpertConfig, FusionExpert
 from baselines.fusion.controller import _UAVMemory
-from baselines.fusion.rules import (RULES, Command, Cycle, braking_fallback, braking_share, dock_approach, dock_turn,
+from baselines.fusion.kernels import braking_arc_clearance
+from baselines.fusion.rules import (RULES, Command, Cycle, braking_fallback, braking_share, braking_turn, dock_approach,
+                                    dock_turn,
                                     drift_guard, drift_persistence, emergency_escape, fence_clearance, gust_speed,
                                     gust_radii, gust_standoff, rest_standoff, reverse_turn, station_keep,
                                     vertical_separation, wind_estimate, wind_margin)
@@ -59,7 +61,8 @@ def cycle(v, mem=None, goal=(10.0, 0.0), lookahead=(10.0, 0.0), heading_goal=(10
 
 def test_rules_are_named_and_ordered():
     assert [r.__name__ for r in RULES] == ["braking_fallback", "dock_turn", "dock_approach", "reverse_turn",
-                                           "gap_turn", "drift_guard", "vertical_separation", "emergency_escape"]
+                                           "gap_turn", "braking_turn", "drift_guard", "vertical_separation",
+                                           "emergency_escape"]
     assert all(r.__doc__ for r in RULES)
 
 
@@ -192,6 +195,46 @@ def test_vertical_separation_parts_two_uavs_that_each_see_the_other_below():
     apart = Command(0.3, 0.0, 0.0)                     # beyond the tie the altitudes decide, whatever the index
     vertical_separation(apart, cycle(a, movers=np.array([[0.6, 0.0, 2.8]])))
     assert apart.vz == LIM.vz_max
+
+
+def test_braking_arc_clearance_knows_the_stopping_distance_and_the_turn():
+    """Braking straight from 1 m/s at 0.2 m/s^2 (dt 0.1 s): v_k = 1 - 0.02 k for k = 1..50, so the UAV stops
+    0.1 x (50 - 0.02 x 1275) = 2.45 m on; a ball of radius 0.1 at x = 3 is then 0.55 - 0.1 away, less r_uav."""
+    lim = LIM.replace(a_max=0.2, dt=0.1, v_min=0.0)
+    state = np.array([0.0, 0.0, 3.0, 0.0, 1.0, 0.0, 0.0])
+    ball = np.array([[3.0, 0.0, 3.0]])
+
+    def arc(w_c, obstacles=ball, radius=0.1, s=state):
+        return braking_arc_clearance(s, w_c, lim.dt, lim.v_min, lim.a_max, lim.w_max, lim.dw_max, obstacles,
+                                     np.full(len(obstacles), radius), lim.r_uav)
+
+    assert arc(0.0) == pytest.approx(0.55 - 0.1 - lim.r_uav, abs=1e-9)
+    left = np.array([[1.5, 0.8, 3.0]])                  # beside the way, to the left: a left turn comes nearer
+    assert arc(lim.w_max, left) < arc(0.0, left) < arc(-lim.w_max, left)
+    assert arc(0.0, np.array([[9.0, 0.0, 3.0]])) == math.inf       # beyond the stopping distance: not counted
+    at_rest = state.copy()
+    at_rest[4] = 0.0
+    assert arc(0.0, s=at_rest) == math.inf
+
+
+def test_braking_turn_swerves_a_coasting_turn_off_a_wall():
+    """A follower at 0.8 m/s whose turn in place swings its nose toward a wall on its right while it coasts
+    (the arc would touch it) flies the turn away from it; left alone where the commanded arc stays clear, when
+    DWA's own sample stands, and with the rule off."""
+    wall = np.array([[x, -0.9, 3.0] for x in np.arange(0.0, 4.0, 0.2)])      # a wall 0.9 m to the right
+    coasting = view(state=(0.0, 0.0, 3.0, 0.0, 0.8, 0.0, 0.0), is_leader=False)
+    cmd = Command(0.0, -W_MAX, 0.0, turning=True)              # reverse_turn: the short way round, to the right
+    braking_turn(cmd, cycle(coasting, obstacles=wall, radius=0.1, cfg=CFG.with_checked(braking_turn=False)))
+    assert cmd.w == -W_MAX
+    braking_turn(cmd, cycle(coasting, obstacles=wall, radius=0.1))
+    assert cmd.w == W_MAX and cmd.v == 0.0                      # away from the wall, still braking
+    far = wall - np.array([0.0, 3.0, 0.0])                      # the wall 3.9 m off: the right turn is clear
+    cmd = Command(0.0, -W_MAX, 0.0, turning=True)
+    braking_turn(cmd, cycle(coasting, obstacles=far, radius=0.1))
+    assert cmd.w == -W_MAX
+    dwa_choice = Command(0.5, -W_MAX, 0.0)                      # DWA's own admissible sample: not a rule's brake
+    braking_turn(dwa_choice, cycle(coasting, obstacles=wall, radius=0.1))
+    assert dwa_choice.w == -W_MAX
 
 
 UNOPPOSED = LIM.replace(wind_authority=0.0)     # the airframe the wind carries whole (drift_persistence = 1)

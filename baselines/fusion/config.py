@@ -266,6 +266,13 @@ class ExpertConfig(Config):
     guard_dwa_exit     such a hovering UAV whose nose points away from the way off the obstacle keeps the command
                        when DWA accelerates it along a rollout at least as clear as it is now (``rules.drift_guard``);
                        False: the guard turns it in place first, as before session 22 [X]
+    braking_turn       a UAV that a rule set braking while it turns (the braking fallback, a turn in place) flies on
+                       along its nose until it stops, v^2 / (2 a_max) (1.7 m from 0.83 m/s), on the arc its turn
+                       sweeps; when that arc would touch DWA's obstacle points (their radii, less r_uav), the turn
+                       (the rule's, none, left or right at w_max) whose arc keeps the most clearance is flown
+                       (``rules.braking_turn``): a follower at 0.83 m/s beside a building, its path's lookahead
+                       behind it, turned in place the short way round, toward the wall, and coasted into it in still
+                       air (urban, 12 UAVs) [X]
     vertical_margin    the gust margins per axis: ``rules.wind_estimate`` keeps the vertical drift apart, and DWA's
                        voxels grow by the horizontal margin (``wind_margin``) only where a horizontal drift can reach
                        them, within the vertical margin + voxel radius + r_uav of the altitudes the rollouts fly; above
@@ -376,6 +383,7 @@ class ExpertConfig(Config):
     guard_gust_time: float = 3.0
     guard_hover_speed: float = 0.1
     guard_dwa_exit: bool = True
+    braking_turn: bool = True
     vertical_margin: bool = True
     park_turn: bool = True
     park_heading: str = "followers"
@@ -407,7 +415,7 @@ class ExpertConfig(Config):
                                       "park_turn", "lateral_emergency_to_dwa", "level_line", "pursuit_speed_cap",
                                       "pursuit_clear", "rejoin_hidden", "final_approach_free", "wind_drift",
                                       "dock_approach", "explore_unknown", "route_turn_cost", "fence_margin",
-                                      "solo_full_speed", "guard_dwa_exit", "vertical_margin")},
+                                      "solo_full_speed", "guard_dwa_exit", "vertical_margin", "braking_turn")},
         "astar_layer": one_of(ASTAR_LAYERS),
         "rejoin": one_of(REJOIN_MODES),
         "park_heading": one_of(PARK_HEADINGS),

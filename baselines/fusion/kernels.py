@@ -7,7 +7,7 @@ import math
 import numba
 import numpy as np
 
-from uavform_env.dynamics import V, VZ, wrap
+from uavform_env.dynamics import V, VZ, W, integrate, wrap
 from uavform_env.formation import slot_xy
 from uavform_env.occupancy import MapArrays, voxel_logodds
 
@@ -223,6 +223,35 @@ def surface_clearance(pos, obstacles, radius, r_uav):
         dx, dy, dz = obstacles[k, 0] - pos[0], obstacles[k, 1] - pos[1], obstacles[k, 2] - pos[2]
         best = min(best, dx * dx + dy * dy + dz * dz)
     return math.sqrt(best) - radius - r_uav
+
+
+@numba.njit(cache=True)
+def braking_arc_clearance(state, w_c, dt, v_min, a_max, w_max, dw_max, obstacles, radii, r_uav):
+    """The least clearance (distance to the obstacle balls of ``radii`` minus r_uav) along the arc a unicycle in
+    ``state`` (x, y, z, psi, v, w, ...) flies at its altitude while it brakes at a_max to v_min, its turn rate
+    moving to ``w_c`` at dw_max within +/- w_max: the env's dynamic window (``uavform_env.dynamics``); inf if it is
+    at rest or no obstacle lies within its stopping distance plus the obstacle's radius and r_uav."""
+    x, y, z, psi, v, w = state[0], state[1], state[2], state[3], state[V], state[W]
+    if v <= v_min:
+        return math.inf
+    reach = (v * v - v_min * v_min) / (2.0 * a_max) + v * dt + r_uav
+    near = np.empty(obstacles.shape[0], np.int64)
+    n = 0
+    for k in range(obstacles.shape[0]):
+        dx, dy, dz = obstacles[k, 0] - x, obstacles[k, 1] - y, obstacles[k, 2] - z
+        if dx * dx + dy * dy + dz * dz <= (reach + radii[k]) ** 2:
+            near[n] = k
+            n += 1
+    best = math.inf
+    while v > v_min and n > 0:
+        v = max(v - a_max * dt, v_min)
+        w = min(max(w_c, w - dw_max * dt, -w_max), w + dw_max * dt, w_max)
+        x, y, z, psi = integrate(x, y, z, psi, v, w, 0.0, dt)
+        for j in range(n):
+            k = near[j]
+            dx, dy, dz = obstacles[k, 0] - x, obstacles[k, 1] - y, obstacles[k, 2] - z
+            best = min(best, math.sqrt(dx * dx + dy * dy + dz * dz) - radii[k])
+    return best - r_uav
 
 
 @numba.njit(cache=True)

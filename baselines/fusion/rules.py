@@ -17,7 +17,7 @@ import numpy as np
 from uavform_env.dynamics import PSI, V, VZ, W, integrate, wrap
 
 from ..vfh3d import vertical_escape
-from .kernels import closest_approach, nearest_live
+from .kernels import braking_arc_clearance, closest_approach, nearest_live
 
 
 @dataclass
@@ -128,6 +128,24 @@ def gap_turn(cmd: Command, c: Cycle) -> None:
         cmd.v, cmd.w, cmd.turning = 0.0, turn_toward(s, to_goal, c.view.limits.w_max), True
 
 
+def braking_turn(cmd: Command, c: Cycle) -> None:
+    """[X] ``braking_turn``: a UAV that a rule set braking while it turns (``braking_fallback``, a turn in place)
+    coasts along its nose until it stops; when the arc of the commanded turn would touch DWA's obstacle points
+    (their radii, less r_uav), the UAV flies the turn among the commanded one, none and w_max either way whose
+    braking arc keeps the most clearance (``kernels.braking_arc_clearance``; the first of equals)."""
+    s, lim = c.view.state, c.view.limits
+    if not c.cfg.braking_turn or len(c.obstacles) == 0 or cmd.v >= s[V] or (c.dwa.admissible and not cmd.turning):
+        return
+
+    def arc(w: float) -> float:
+        return braking_arc_clearance(s, w, lim.dt, lim.v_min, lim.a_max, lim.w_max, lim.dw_max, c.obstacles,
+                                     c.radii, lim.r_uav)
+
+    if arc(cmd.w) >= 0.0:
+        return
+    cmd.w = max((cmd.w, 0.0, lim.w_max, -lim.w_max), key=arc)
+
+
 def drift_guard(cmd: Command, c: Cycle) -> None:
     """[X] ``guard_clearance``, ``guard_speed``: with no admissible DWA sample, a UAV whose clearance to the nearest
     obstacle point (own-map voxel or world bound) beside it is below ``guard_clearance`` does not brake to a
@@ -221,8 +239,8 @@ def emergency_escape(cmd: Command, c: Cycle) -> None:
         cmd.vz = 0.0                    # the escape would fly into a neighbour (above or below)
 
 
-RULES = (braking_fallback, dock_turn, dock_approach, reverse_turn, gap_turn, drift_guard, vertical_separation,
-         emergency_escape)
+RULES = (braking_fallback, dock_turn, dock_approach, reverse_turn, gap_turn, braking_turn, drift_guard,
+         vertical_separation, emergency_escape)
 """The rules after DWA, in the order they act on the command (later ones override earlier ones)."""
 
 
