@@ -205,8 +205,8 @@ def test_braking_arc_clearance_knows_the_stopping_distance_and_the_turn():
     ball = np.array([[3.0, 0.0, 3.0]])
 
     def arc(w_c, obstacles=ball, radius=0.1, s=state):
-        return braking_arc_clearance(s, w_c, lim.dt, lim.v_min, lim.a_max, lim.w_max, lim.dw_max, obstacles,
-                                     np.full(len(obstacles), radius), lim.r_uav)
+        return braking_arc_clearance(s, w_c, lim.dt, lim.v_min, lim.v_max, lim.a_max, lim.w_max, lim.dw_max,
+                                     obstacles, np.full(len(obstacles), radius), lim.r_uav)
 
     assert arc(0.0) == pytest.approx(0.55 - 0.1 - lim.r_uav, abs=1e-9)
     left = np.array([[1.5, 0.8, 3.0]])                  # beside the way, to the left: a left turn comes nearer

@@ -80,12 +80,20 @@ def commands_to_actions(commands: np.ndarray, limits: UAVLimits) -> np.ndarray:
 
 
 @numba.njit(cache=True, inline="always")
-def _advance(states, i, v_c, w_c, vz_c, dt, v_min, v_max, w_max, a_max, dw_max, vz_max, az_max, z_min, z_max):
-    """Advance UAV i one step with the commands (v_c, w_c, vz_c) (see ``step``)."""
-    v0, w0, vz0 = states[i, V], states[i, W], states[i, VZ]
+def window(v_c, w_c, vz_c, v0, w0, vz0, dt, v_min, v_max, w_max, a_max, dw_max, vz_max, az_max):
+    """The rates (v, w, vz) a UAV at (v0, w0, vz0) flies for one step on the commands (v_c, w_c, vz_c): each
+    limited to the dynamic window (acceleration over dt) and to its bounds."""
     v = min(max(v_c, v0 - a_max * dt, v_min), v0 + a_max * dt, v_max)
     w = min(max(w_c, w0 - dw_max * dt, -w_max), w0 + dw_max * dt, w_max)
     vz = min(max(vz_c, vz0 - az_max * dt, -vz_max), vz0 + az_max * dt, vz_max)
+    return v, w, vz
+
+
+@numba.njit(cache=True, inline="always")
+def _advance(states, i, v_c, w_c, vz_c, dt, v_min, v_max, w_max, a_max, dw_max, vz_max, az_max, z_min, z_max):
+    """Advance UAV i one step with the commands (v_c, w_c, vz_c) (see ``step``)."""
+    v, w, vz = window(v_c, w_c, vz_c, states[i, V], states[i, W], states[i, VZ], dt, v_min, v_max, w_max, a_max,
+                      dw_max, vz_max, az_max)
     x, y, z, psi = integrate(states[i, X], states[i, Y], states[i, Z], states[i, PSI], v, w, vz, dt)
     if z < z_min or z > z_max:
         z = min(max(z, z_min), z_max)

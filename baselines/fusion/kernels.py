@@ -7,7 +7,7 @@ import math
 import numba
 import numpy as np
 
-from uavform_env.dynamics import V, VZ, W, integrate, wrap
+from uavform_env.dynamics import V, VZ, W, integrate, window, wrap
 from uavform_env.formation import slot_xy
 from uavform_env.occupancy import MapArrays, voxel_logodds
 
@@ -226,10 +226,10 @@ def surface_clearance(pos, obstacles, radius, r_uav):
 
 
 @numba.njit(cache=True)
-def braking_arc_clearance(state, w_c, dt, v_min, a_max, w_max, dw_max, obstacles, radii, r_uav):
+def braking_arc_clearance(state, w_c, dt, v_min, v_max, a_max, w_max, dw_max, obstacles, radii, r_uav):
     """The least clearance (distance to the obstacle balls of ``radii`` minus r_uav) along the arc a unicycle in
     ``state`` (x, y, z, psi, v, w, ...) flies at its altitude while it brakes at a_max to v_min, its turn rate
-    moving to ``w_c`` at dw_max within +/- w_max: the env's dynamic window (``uavform_env.dynamics``); inf if it is
+    moving to ``w_c`` at dw_max within +/- w_max: the env's dynamic window (``dynamics.window``); inf if it is
     at rest or no obstacle lies within its stopping distance plus the obstacle's radius and r_uav."""
     x, y, z, psi, v, w = state[0], state[1], state[2], state[3], state[V], state[W]
     if v <= v_min:
@@ -244,8 +244,7 @@ def braking_arc_clearance(state, w_c, dt, v_min, a_max, w_max, dw_max, obstacles
             n += 1
     best = math.inf
     while v > v_min and n > 0:
-        v = max(v - a_max * dt, v_min)
-        w = min(max(w_c, w - dw_max * dt, -w_max), w + dw_max * dt, w_max)
+        v, w, _ = window(v_min, w_c, 0.0, v, w, 0.0, dt, v_min, v_max, w_max, a_max, dw_max, 0.0, 0.0)
         x, y, z, psi = integrate(x, y, z, psi, v, w, 0.0, dt)
         for j in range(n):
             k = near[j]

@@ -138,8 +138,8 @@ def braking_turn(cmd: Command, c: Cycle) -> None:
         return
 
     def arc(w: float) -> float:
-        return braking_arc_clearance(s, w, lim.dt, lim.v_min, lim.a_max, lim.w_max, lim.dw_max, c.obstacles,
-                                     c.radii, lim.r_uav)
+        return braking_arc_clearance(s, w, lim.dt, lim.v_min, lim.v_max, lim.a_max, lim.w_max, lim.dw_max,
+                                     c.obstacles, c.radii, lim.r_uav)
 
     if arc(cmd.w) >= 0.0:
         return
