@@ -1,11 +1,15 @@
 """Success / collision table of the fusion expert over a scenario x seed grid.
 
     python benchmarks/expert_success.py [--scenarios forest corridor ...] [--seeds 0 1 2] [--n N]
+                                        [--formation wedge] [--difficulty medium] [--wind breeze]
                                         [--workers 1] [--max-steps 3000] [--policy expert]
 
-One episode per (scenario, seed) at the scenario's default size (``--n`` overrides it); at most ``--workers`` processes
-(1-2: the machine is shared). Prints one row per scenario (S = success, C = collision, . = time-out
-per seed) and the wall time, so the number in docs and issues is reproducible.
+One episode per (scenario, seed) at the scenario's default size, formation, difficulty and disturbance (``--n``,
+``--formation``, ``--difficulty``, ``--wind`` override them: missions outside the suites, such as larger formations
+than v1 flies); at most ``--workers`` processes (1-2: the machine is shared). Prints one row per scenario
+(S = success, C = collision, . = time-out per seed) and the wall time, so the number in docs and issues is
+reproducible. The policy and every scenario (with the overrides) are built once before any flight, so a bad name or
+combination is a one-line error.
 """
 
 from __future__ import annotations
@@ -18,14 +22,20 @@ from uavform_env.parallel import imap_unordered
 SCENARIOS = ("forest@1", "corridor@1", "urban@1", "wall-gap@1", "random-3d@1", "classic-2d@1")  # the tuned-on worlds
 
 
-def fly(scenario: str, seed: int, n: int | None, max_steps: int, policy_name: str):
+def env_kwargs(scenario: str, max_steps: int, n: int | None, formation: str | None, difficulty: str | None,
+               wind: str | None) -> dict:
+    """``parallel_env``'s arguments for one scenario with the overrides that are set."""
+    given = {"n_uavs": n, "formation": formation, "difficulty": difficulty, "disturbance": wind}
+    return {"scenario": scenario, "max_cycles": max_steps, **{k: v for k, v in given.items() if v is not None}}
+
+
+def fly(scenario: str, seed: int, kwargs: dict, policy_name: str):
     from uavform_env.formation_v0 import parallel_env
     from uavform_env.policies import load_policy
     from uavform_env.rollout import run_episode
 
     t0 = time.perf_counter()
-    size = {} if n is None else {"n_uavs": n}
-    penv = parallel_env(scenario=scenario, max_cycles=max_steps, **size)
+    penv = parallel_env(**kwargs)
     metrics = run_episode(penv, load_policy(policy_name), seed)
     return scenario, seed, bool(metrics["success"]), bool(metrics["collision"]), time.perf_counter() - t0
 
@@ -35,18 +45,35 @@ def main(argv=None) -> int:
     p.add_argument("--scenarios", nargs="+", default=list(SCENARIOS))
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     p.add_argument("--n", type=int, default=None, help="UAVs per episode (default: each scenario's default size)")
+    p.add_argument("--formation", default=None, help="formation shape (default: each scenario's)")
+    p.add_argument("--difficulty", default=None, help="difficulty of scenarios that have levels (default: each's)")
+    p.add_argument("--wind", default=None, help="disturbance preset (default: each scenario's)")
     p.add_argument("--max-steps", type=int, default=3000)
     p.add_argument("--workers", type=int, default=1, choices=(1, 2))
     p.add_argument("--policy", default="expert")
     a = p.parse_args(argv)
-    jobs = [(s, seed, a.n, a.max_steps, a.policy) for s in a.scenarios for seed in a.seeds]
+    from uavform_env.formation_v0 import parallel_env
+    from uavform_env.policies import load_policy
+    try:
+        load_policy(a.policy)
+    except ValueError as e:
+        p.error(f"--policy: {e}")
+    kwargs = {}
+    for s in a.scenarios:
+        kwargs[s] = env_kwargs(s, a.max_steps, a.n, a.formation, a.difficulty, a.wind)
+        try:
+            parallel_env(**kwargs[s]).close()
+        except ValueError as e:
+            p.error(f"--scenarios {s}: {e}")
+    jobs = [(s, seed, kwargs[s], a.policy) for s in a.scenarios for seed in a.seeds]
     t0 = time.perf_counter()
     results = {}
     for scenario, seed, ok, crash, secs in imap_unordered(fly, jobs, a.workers):
         results[scenario, seed] = (ok, crash)
         print(f"  {scenario:<11} seed {seed}: {'SUCCESS' if ok else 'COLLISION' if crash else 'time-out'}"
               f" ({secs:.0f} s)", flush=True)
-    print(f"\n{a.policy}, {a.n or 'default'} UAVs, seeds {a.seeds}, max {a.max_steps} steps")
+    print(f"\n{a.policy}, {a.n or 'default'} UAVs, formation {a.formation or 'default'}, difficulty "
+          f"{a.difficulty or 'default'}, wind {a.wind or 'default'}, seeds {a.seeds}, max {a.max_steps} steps")
     print(f"{'scenario':<11} {'per seed':<{max(8, len(a.seeds))}} success collisions")
     tot_ok = tot_c = 0
     for s in a.scenarios:

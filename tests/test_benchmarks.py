@@ -73,6 +73,27 @@ def test_wind_benchmarks_refuse_bad_settings_in_one_line(name, argv, flag, monke
     assert err[-1].startswith(f"{name}.py: error: {flag}: expected")
 
 
+def test_expert_success_flies_missions_beyond_the_suites(monkeypatch, capsys):
+    """Formation, difficulty and wind overrides reach the env; the header names them."""
+    _run("expert_success", ["--scenarios", "random-3d@2", "--seeds", "0", "--max-steps", "5", "--n", "12",
+                            "--formation", "column", "--difficulty", "hard", "--wind", "breeze"], monkeypatch)
+    out = capsys.readouterr().out
+    assert "12 UAVs, formation column, difficulty hard, wind breeze" in out and "total: 0/1 success" in out
+
+
+@pytest.mark.parametrize("argv, flag", [(["--n", "13", "--formation", "diamond"], "--scenarios urban@2"),
+                                        (["--wind", "stormy"], "--scenarios urban@2"),
+                                        (["--difficulty", "hard"], "--scenarios urban@2"),
+                                        (["--policy", "nope"], "--policy")])
+def test_expert_success_refuses_a_bad_mission_before_flying(argv, flag, monkeypatch, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        _run("expert_success", ["--scenarios", "urban@2", "--seeds", "0", *argv], monkeypatch)
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith(f"expert_success.py: error: {flag}: ")
+    assert "SUCCESS" not in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("b, c", [(0, 0), (0, 1), (4, 5), (8, 1), (3, 11), (0, 12), (20, 7), (30, 30)])
 def test_mcnemar_p_is_scipys_exact_two_sided_binomial_test(b, c, monkeypatch):
     p = _module("compare_flights", monkeypatch).mcnemar_p(b, c)
