@@ -141,9 +141,13 @@ def braking_turn(cmd: Command, c: Cycle) -> None:
         return braking_arc_clearance(s, w, lim.dt, lim.v_min, lim.v_max, lim.a_max, lim.w_max, lim.dw_max,
                                      c.obstacles, c.radii, lim.r_uav)
 
-    if arc(cmd.w) >= 0.0:
+    best = arc(cmd.w)
+    if best >= 0.0:
         return
-    cmd.w = max((cmd.w, 0.0, lim.w_max, -lim.w_max), key=arc)
+    for w in (0.0, lim.w_max, -lim.w_max):          # the commanded turn's arc is not worked out twice
+        clearance = arc(w)
+        if clearance > best:
+            best, cmd.w = clearance, w
 
 
 def drift_guard(cmd: Command, c: Cycle) -> None:
