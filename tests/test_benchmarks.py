@@ -94,6 +94,43 @@ def test_expert_success_refuses_a_bad_mission_before_flying(argv, flag, monkeypa
     assert "SUCCESS" not in capsys.readouterr().out
 
 
+def test_mission_draws_are_fixed_by_seed_and_index_and_every_draw_builds(monkeypatch):
+    """A draw is the same mission however many draws are asked for; each fits its scenario (team, formation,
+    difficulty) and its disturbance is a valid ``DisturbanceConfig``, so a record can be flown again."""
+    from uavform_env.config import DisturbanceConfig
+    from uavform_env.formation_v0 import parallel_env
+
+    module = _module("mission_draws", monkeypatch)
+    args = (module.FAMILIES, (1, 16), (1.2, 3.5), (0.0, 0.6), 0.4)
+    draws = [module.draw(3, i, *args) for i in range(40)]
+    assert module.draw(3, 17, *args) == draws[17] and module.draw(4, 17, *args) != draws[17]
+    assert {d["kwargs"]["scenario"].split("@")[0] for d in draws} >= {"forest", "urban", "dog-leg"}
+    assert any(d["disturbance"] == {} for d in draws) and any("wind_std" in d["disturbance"] for d in draws)
+    for d in draws[:12]:
+        parallel_env(**d["kwargs"], layout_seed=d["seed"], disturbance=DisturbanceConfig(**d["disturbance"])).close()
+
+
+def test_mission_draws_fly_and_write_their_records(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "draws.jsonl"
+    _run("mission_draws", ["--draws", "2", "--scenarios", "forest@2", "--max-steps", "5", "--out", str(out)],
+         monkeypatch)
+    records = [json.loads(line) for line in out.read_text().splitlines()]
+    assert [r["draw"] for r in records] == [0, 1] and {r["outcome"] for r in records} == {"timeout"}
+    assert "| all | 2 |" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv, flag", [(["--n", "5", "2"], "--n 5 2"), (["--n", "0", "3"], "--n 0 3"),
+                                        (["--spacing", "0.1", "2"], "--spacing 0.1 2"),
+                                        (["--still-share", "2"], "--still-share 2"), (["--draws", "0"], "--draws 0"),
+                                        (["--scenarios", "forest@9"], "--scenarios forest@9"),
+                                        (["--policy", "nope"], "--policy")])
+def test_mission_draws_refuse_bad_settings_before_flying(argv, flag, monkeypatch, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        _run("mission_draws", argv, monkeypatch)
+    assert exit_.value.code == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1].startswith(f"mission_draws.py: error: {flag}")
+
+
 @pytest.mark.parametrize("b, c", [(0, 0), (0, 1), (4, 5), (8, 1), (3, 11), (0, 12), (20, 7), (30, 30)])
 def test_mcnemar_p_is_scipys_exact_two_sided_binomial_test(b, c, monkeypatch):
     p = _module("compare_flights", monkeypatch).mcnemar_p(b, c)

@@ -14,7 +14,7 @@ from scipy import ndimage
 from uavform_env.config import UAVLimits
 from uavform_env.formation import slot_offsets
 from uavform_env.scenarios import (Mission, Scenario, ScenarioFileError, list_scenarios, load_scenario,
-                                   make_scenario, validate_scenario)
+                                   make_scenario, scenario_options, validate_scenario)
 from uavform_env.world import Box, Cylinder, Sphere
 
 LIMITS = UAVLimits()
@@ -209,6 +209,18 @@ def test_random_3d_difficulty_sets_density():
     kinds = {type(ob) for ob in make_scenario("random-3d@1", 0).obstacles}
     assert kinds == {Box, Cylinder, Sphere}
     assert make_scenario("random-3d@1", 0) == make_scenario("random-3d@1", 0, difficulty="medium")
+
+
+@pytest.mark.parametrize("name", [f"{n}@{v}" for n in list_scenarios() for v in (1, 2)
+                                  if not (n == "dog-leg" and v == 2)])
+def test_scenario_options_are_what_make_scenario_accepts(name):
+    options = scenario_options(name)
+    for level in options["difficulties"]:
+        assert make_scenario(name, 0, difficulty=level).mission
+    with pytest.raises(ValueError, match="difficulty='nope'"):
+        make_scenario(name, 0, difficulty="nope")
+    teams = {make_scenario(name, s).mission.n_uavs for s in range(6)}
+    assert teams == {options["n_uavs"]} if options["n_uavs"] is not None else len(teams) > 1
 
 
 # ---------------------------------------------------------------- validation

@@ -816,6 +816,14 @@ def list_scenarios() -> list[str]:
     return sorted(_REGISTRY)
 
 
+def scenario_options(name: str) -> dict:
+    """What ``make_scenario`` lets a caller choose for a registered scenario: ``difficulties`` (its levels, empty if
+    it has none) and ``n_uavs``, its default team size (None: drawn from the family's range; 1 for the single-UAV
+    classic-2d maps)."""
+    _, _, gen = _lookup(name)
+    return {"difficulties": tuple(gen.difficulties), "n_uavs": None if gen.team is not None else gen.n_uavs}
+
+
 def _lookup(name) -> tuple[str, int, _Generator]:
     if not isinstance(name, str):
         raise ValueError(f"scenario name {name!r}: expected a string such as 'forest' or 'forest@1'")
