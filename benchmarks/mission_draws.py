@@ -79,11 +79,12 @@ def fly(mission: dict, max_steps: int, policy_name: str) -> dict:
             "seconds": round(time.perf_counter() - t0, 1)}
 
 
-def _pair(p, flag: str, values, lo: float, hi: float | None, integer: bool = False) -> tuple:
+def _pair(p, flag: str, values, lo: float, hi: float, integer: bool = False) -> tuple:
+    """``values`` (lo, hi) of ``flag`` checked to lie in order within [lo, hi] (integers if ``integer``)."""
     a, b = values
-    if not (lo <= a <= b and (hi is None or b <= hi)) or (integer and (a != int(a) or b != int(b))):
+    if not lo <= a <= b <= hi or (integer and (a != int(a) or b != int(b))):
         kind = "integers" if integer else "numbers"
-        p.error(f"{flag} {a:g} {b:g}: expected two {kind} lo <= hi within [{lo:g}, {'inf' if hi is None else hi}]")
+        p.error(f"{flag} {a:g} {b:g}: expected two {kind} lo <= hi within [{lo:g}, {hi:g}]")
     return (int(a), int(b)) if integer else (float(a), float(b))
 
 
