@@ -29,15 +29,21 @@ def env_kwargs(scenario: str, max_steps: int, n: int | None, formation: str | No
     return {"scenario": scenario, "max_cycles": max_steps, **{k: v for k, v in given.items() if v is not None}}
 
 
-def fly(scenario: str, seed: int, kwargs: dict, policy_name: str):
+def fly(scenario: str, seed: int, kwargs: dict, policy_name: str) -> dict:
+    """One episode of ``parallel_env(**kwargs)`` flown by the policy from ``seed``: whether it succeeded and collided,
+    the env's end reason and its sentence (``metrics.episode_outcome``), the steps and the wall time."""
     from uavform_env.formation_v0 import parallel_env
+    from uavform_env.metrics import episode_outcome
     from uavform_env.policies import load_policy
     from uavform_env.rollout import run_episode
 
     t0 = time.perf_counter()
     penv = parallel_env(**kwargs)
     metrics = run_episode(penv, load_policy(policy_name), seed)
-    return scenario, seed, bool(metrics["success"]), bool(metrics["collision"]), time.perf_counter() - t0
+    outcome, detail = episode_outcome(penv.unwrapped)
+    return {"scenario": scenario, "seed": seed, "success": bool(metrics["success"]),
+            "collision": bool(metrics["collision"]), "outcome": outcome, "detail": detail,
+            "steps": int(penv.unwrapped.step_count), "seconds": time.perf_counter() - t0}
 
 
 def main(argv=None) -> int:
@@ -68,10 +74,10 @@ def main(argv=None) -> int:
     jobs = [(s, seed, kwargs[s], a.policy) for s in a.scenarios for seed in a.seeds]
     t0 = time.perf_counter()
     results = {}
-    for scenario, seed, ok, crash, secs in imap_unordered(fly, jobs, a.workers):
-        results[scenario, seed] = (ok, crash)
-        print(f"  {scenario:<11} seed {seed}: {'SUCCESS' if ok else 'COLLISION' if crash else 'time-out'}"
-              f" ({secs:.0f} s)", flush=True)
+    for r in imap_unordered(fly, jobs, a.workers):
+        ok, crash = results[r["scenario"], r["seed"]] = (r["success"], r["collision"])
+        print(f"  {r['scenario']:<11} seed {r['seed']}: {'SUCCESS' if ok else 'COLLISION' if crash else 'time-out'}"
+              f" ({r['seconds']:.0f} s)", flush=True)
     print(f"\n{a.policy}, {a.n or 'default'} UAVs, formation {a.formation or 'default'}, difficulty "
           f"{a.difficulty or 'default'}, wind {a.wind or 'default'}, seeds {a.seeds}, max {a.max_steps} steps")
     print(f"{'scenario':<11} {'per seed':<{max(8, len(a.seeds))}} success collisions")

@@ -25,6 +25,7 @@ from collections import Counter, defaultdict
 
 import numpy as np
 
+import expert_success
 from uavform_env.parallel import imap_unordered
 
 FAMILIES = ("classic-2d@1", "classic-2d@2", "forest@1", "forest@2", "urban@1", "urban@2", "wall-gap@1", "wall-gap@2",
@@ -63,20 +64,14 @@ def draw(seed: int, i: int, scenarios, n_range, spacing_range, wind_std_range, s
 
 
 def fly(mission: dict, max_steps: int, policy_name: str) -> dict:
-    """Fly one drawn mission; its record with the outcome, the env's reason and the steps flown."""
+    """Fly one drawn mission (``expert_success.fly``); its record with the outcome, the env's reason and the steps."""
     from uavform_env.config import DisturbanceConfig
-    from uavform_env.formation_v0 import parallel_env
-    from uavform_env.metrics import episode_outcome
-    from uavform_env.policies import load_policy
-    from uavform_env.rollout import run_episode
 
-    t0 = time.perf_counter()
-    penv = parallel_env(**mission["kwargs"], max_cycles=max_steps, layout_seed=mission["seed"],
-                        disturbance=DisturbanceConfig(**mission["disturbance"]))
-    run_episode(penv, load_policy(policy_name), mission["seed"])
-    outcome, detail = episode_outcome(penv.unwrapped)
-    return {**mission, "outcome": outcome, "detail": detail, "steps": int(penv.unwrapped.step_count),
-            "seconds": round(time.perf_counter() - t0, 1)}
+    kwargs = {**mission["kwargs"], "max_cycles": max_steps, "layout_seed": mission["seed"],
+              "disturbance": DisturbanceConfig(**mission["disturbance"])}
+    r = expert_success.fly(mission["kwargs"]["scenario"], mission["seed"], kwargs, policy_name)
+    return {**mission, "outcome": r["outcome"], "detail": r["detail"], "steps": r["steps"],
+            "seconds": round(r["seconds"], 1)}
 
 
 def _pair(p, flag: str, values, lo: float, hi: float, integer: bool = False) -> tuple:

@@ -9,7 +9,6 @@ generated from the records and the config objects that ran, never written by han
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
