@@ -221,3 +221,28 @@ def test_memory_estimate_is_linear_in_the_maps_and_capped_by_the_grid():
         + grid_blocks * BLOCK_BYTES
     assert occupancy.seen_blocks_bound(6.0, 0.0, RES) == (math.ceil(12.0 / 1.6) + 2) ** 3
     assert occupancy.seen_blocks_bound(6.0, 0.0, RES, 64) == (math.ceil(12.0 / 12.8) + 2) ** 3
+
+
+def test_maps_follow_the_map_resolution_and_default_to_the_scenarios_grid():
+    from uavform_env.config import EnvConfig
+    from uavform_env.scenarios import GRID_RESOLUTION
+
+    default = FormationEnv("forest", n_uavs=2)
+    default.reset(seed=0)
+    assert default.config.map.resolution == GRID_RESOLUTION == default.world.res
+    assert default.onboard("uav_0").occupancy.resolution == GRID_RESOLUTION
+    for res in (0.1, 0.4):
+        env = FormationEnv("forest", n_uavs=2, config=EnvConfig(map=MapConfig(resolution=res)))
+        env.reset(seed=0)
+        assert env.config.map.resolution == res and env.world.res == GRID_RESOLUTION   # the ground truth stays
+        occ = env.onboard("uav_1").occupancy
+        assert occ.resolution == res
+        assert np.allclose(np.asarray(occ.origin) / res, np.round(np.asarray(occ.origin) / res))
+        for _ in range(3):
+            env.step({a: np.array([0.0, 0.0, 0.0], np.float32) for a in env.agents})
+        centres, _ = occ.occupied_in_sphere(env.states[1, :3], 6.0)
+        assert len(centres) and np.allclose(centres / res - 0.5, np.round(centres / res - 0.5))  # voxel centres
+        # each holds a hit on the ground truth, whose voxels (world.res) hold a piece of obstacle
+        assert env.world.clearance(centres).max() <= (res + env.world.res) * math.sqrt(3) / 2
+    with pytest.raises(ValueError, match=r"MapConfig.resolution=0.001"):
+        MapConfig(resolution=0.001)

@@ -7,6 +7,7 @@ from uavform_env.config import EnvConfig, ObservationConfig
 from uavform_env.dynamics import PSI, VZ, W, V, Z
 from uavform_env.observations import ObservationLayout, build_observations
 from uavform_env.occupancy import MapStore
+from uavform_env.scenarios import GRID_RESOLUTION
 
 
 def body(dxy, psi):
@@ -68,6 +69,6 @@ def test_own_fields_equal_the_numpy_reference(n, k):
     broadcast[n // 2:, :3] = states[0, :3] + np.array([3.0, 0.0, 0.0])
     targets = rng.uniform(0, 10, (n, 3))
     ok = rng.random(n) < 0.8
-    maps = MapStore((0.0, 0.0, 0.0), (8, 8, 8), cfg.map.resolution, cfg.map, n)
+    maps = MapStore((0.0, 0.0, 0.0), (8, 8, 8), GRID_RESOLUTION, cfg.map, n)
     got = build_observations(layout, cfg, states, targets, 0, broadcast, maps, ok)
     np.testing.assert_array_equal(got, reference(layout, cfg, states, targets, 0, broadcast, ok))

@@ -246,9 +246,14 @@ class SensorConfig(Config):
 
 @dataclass(frozen=True)
 class MapConfig(Config):
-    """Onboard occupancy map with OctoMap's sensor model (spec (e1))."""
+    """Onboard occupancy map with OctoMap's sensor model (spec (e1)).
 
-    resolution: float = 0.2
+    ``resolution``: the maps' voxel edge (m). None (default): the scenario's voxel grid (its ``resolution``, on which
+    the ground truth is rasterised; ``scenarios.GRID_RESOLUTION`` for the registered generators). A number gives the
+    maps a grid of their own over the world's bounds. ``FormationEnv`` replaces None by the resolution in use.
+    """
+
+    resolution: float | None = None
     p_hit: float = 0.7
     p_miss: float = 0.4
     p_min: float = 0.1192
@@ -257,7 +262,8 @@ class MapConfig(Config):
 
     def __post_init__(self):
         o = "MapConfig"
-        check_range(o, "resolution", self.resolution, 0.01, 5.0)
+        if self.resolution is not None:
+            check_range(o, "resolution", self.resolution, 0.01, 5.0)
         check_range(o, "p_hit", self.p_hit, 0.5, 1.0, lo_open=True, hi_open=True)
         check_range(o, "p_miss", self.p_miss, 0.0, 0.5, lo_open=True, hi_open=True)
         check_range(o, "p_min", self.p_min, 0.0, 0.5, lo_open=True, hi_open=True)

@@ -106,6 +106,8 @@ class FormationEnv(ParallelEnv):
                              f"got {type(disturbance).__name__}")
         if disturbance is not None:
             cfg = cfg.replace(disturbance=disturbance)
+        if cfg.map.resolution is None:                  # the maps on the scenario's grid (fixed for the env's life)
+            cfg = cfg.replace(map=cfg.map.replace(resolution=first.resolution))
         if self._source is not None:
             try:  # a file's mistakes are reported now, naming the file
                 validate_scenario(first, cfg.uav, cfg.formation.z_ref, source=self._source)
@@ -210,12 +212,12 @@ class FormationEnv(ParallelEnv):
                        if d.wind_std > 0 else None)
         self.step_count = 0
         self.success = False
-        w = self.world
+        origin, shape = self.world.frame(cfg.map.resolution)
         store = self._map_store
-        if store is not None and (store.res, store.cfg, store.n_maps) == (w.res, cfg.map, n):
-            store.clear(w.origin, w.shape)                       # a new layout's grid, the same block pool
+        if store is not None and (store.cfg, store.n_maps) == (cfg.map, n):
+            store.clear(origin, shape)                           # a new layout's grid, the same block pool
         else:
-            self._map_store = MapStore(w.origin, w.shape, w.res, cfg.map, n)
+            self._map_store = MapStore(origin, shape, cfg.map.resolution, cfg.map, n)
             self._map_views = [m.read_only() for m in self._map_store.maps]
         self.maps = self._map_store.maps
         self._sense()
@@ -470,14 +472,16 @@ def _check_memory(scn: Scenario, cfg: EnvConfig, n: int) -> None:
     Each map is expected to hold the blocks within r_max of a flight _DETOUR times as long as the
     straight line from start to goal (or of the whole episode at v_max, if that is shorter), as
     ``seen_blocks_bound`` counts them; maps that see more grow their pools as they go."""
-    origin, shape = grid_frame(scn.bounds_lo, scn.bounds_hi, scn.resolution)
+    res = cfg.map.resolution
+    _, truth = grid_frame(scn.bounds_lo, scn.bounds_hi, scn.resolution)
+    _, shape = grid_frame(scn.bounds_lo, scn.bounds_hi, res)
     u, m = cfg.uav, scn.mission
     path = min(u.v_max * u.dt * cfg.episode.max_cycles, _DETOUR * math.dist(m.start, m.goal))
-    seen = [seen_blocks_bound(cfg.sensor.r_max, path, scn.resolution, edge) for edge in (BLOCK_EDGE, CHUNK_EDGE)]
-    need = math.prod(shape) + map_memory_estimate(shape, n, *seen)
+    seen = [seen_blocks_bound(cfg.sensor.r_max, path, res, edge) for edge in (BLOCK_EDGE, CHUNK_EDGE)]
+    need = math.prod(truth) + map_memory_estimate(shape, n, *seen)
     have = available_memory()
     if need > have:
-        raise ValueError(f"n_uavs={n} at map resolution {scn.resolution:g} m over a {shape[0]}x{shape[1]}x{shape[2]} "
+        raise ValueError(f"n_uavs={n} at map resolution {res:g} m over a {shape[0]}x{shape[1]}x{shape[2]} "
                          f"voxel world needs an estimated {need / 2**30:.2f} GiB, but only {have / 2**30:.2f} GiB is "
                          "available; use fewer UAVs, a coarser resolution, a shorter sensor.r_max or free memory")
 

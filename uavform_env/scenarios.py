@@ -27,7 +27,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-from .config import (FORMATION_SHAPES, SLOT_ALTITUDES, DisturbanceConfig, FormationConfig, MapConfig, UAVLimits,
+from .config import (FORMATION_SHAPES, SLOT_ALTITUDES, DisturbanceConfig, FormationConfig, UAVLimits,
                      disturbance_preset)
 from .files import atomic_write_bytes
 from .formation import MAX_UAVS, formation_slots, slot_offsets, slot_positions
@@ -36,7 +36,7 @@ from .world import Box, Cylinder, Sphere, World, as_finite, as_finite_vector, as
 # Generators design for the default vehicle and formation altitude (the config is the one source of truth).
 _LIMITS = UAVLimits()
 _Z_REF = FormationConfig().z_ref
-_RESOLUTION = MapConfig().resolution  # the ground-truth raster shares the onboard maps' voxel grid
+GRID_RESOLUTION = 0.2  # m: voxel grid of every generated world (the ground truth; the onboard maps' by default)
 _DEFAULT_N_UAVS = 5  # spec Appendix A: N = 5, wedge, s = 2.0 (shape and spacing come from FormationConfig)
 _R_CLEAR = _LIMITS.r_uav + _LIMITS.r_safe  # the clearance validate_scenario demands
 _ZONE_RADIUS = _R_CLEAR + 1.0  # obstacle footprints keep this far from every start and goal slot
@@ -203,7 +203,8 @@ _KEY_NOTES = {
                  "seed": "generator seed that made this layout"},
     "world": {"bounds_lo": "lowest corner [x, y, z] (m); z starts at the ground, 0",
               "bounds_hi": "highest corner [x, y, z] (m); leaving the x/y bounds is a crash",
-              "resolution": "voxel edge (m) of the ground-truth grid and the UAVs' maps"},
+              "resolution": "voxel edge (m) of the ground-truth grid, and of the UAVs' maps unless "
+                            "MapConfig.resolution is set"},
     "mission": {"start": "leader's start [x, y, z] (m); followers start on their slots (see slot_altitude)",
                 "goal": "leader's goal [x, y, z] (m)", "start_heading": "initial yaw of every UAV (rad, 0 = +x)",
                 "formation": f"formation shape: {' | '.join(FORMATION_SHAPES)}",
@@ -870,7 +871,7 @@ def make_scenario(name: str, seed: int = 0, *, n_uavs: int | None = None, format
     bounds_lo, bounds_hi, obstacles, mission = gen.build(rng, mission.n_uavs,
                                                          mission.formation, mission.spacing, difficulty)
     return Scenario(name=base, version=version, seed=int(seed), bounds_lo=bounds_lo, bounds_hi=bounds_hi,
-                    resolution=_RESOLUTION, obstacles=tuple(obstacles), mission=mission)
+                    resolution=GRID_RESOLUTION, obstacles=tuple(obstacles), mission=mission)
 
 
 def load_scenario(name_or_path, seed: int = 0, *, n_uavs: int | None = None, formation: str | None = None,

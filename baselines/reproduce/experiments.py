@@ -23,14 +23,14 @@ from typing import Callable
 
 import numpy as np
 
-from uavform_env.config import EnvConfig, EpisodeConfig, FormationConfig, MapConfig, UAVLimits
+from uavform_env.config import EnvConfig, EpisodeConfig, FormationConfig, UAVLimits
 from uavform_env.evaluation.runner import code_version
 from uavform_env.files import append_line, atomic_write_json, read_jsonl, set_aside_torn_line
 from uavform_env.formation import slot_offsets, slot_positions
 from uavform_env.formation_v0 import parallel_env
 from uavform_env.metrics import episode_metrics
 from uavform_env.parallel import imap_unordered
-from uavform_env.scenarios import Mission, Scenario, make_scenario
+from uavform_env.scenarios import GRID_RESOLUTION, Mission, Scenario, make_scenario
 from uavform_env.world import Box, Cylinder
 
 from ..dwa import DWAConfig
@@ -40,7 +40,7 @@ from ..paper import PaperConfig, PaperPlanner
 FORMAT = 2                            # runs.jsonl / plan.json format of this module
 FIGURE_SEED = 0                       # the seed whose runs keep a trace for the report's figures
 Z_REF = FormationConfig().z_ref       # the altitude every mission starts and ends at
-RESOLUTION = MapConfig().resolution   # the voxel size of every registered scenario
+RESOLUTION = GRID_RESOLUTION          # the voxel size of every registered scenario
 CEILING = UAVLimits().z_max + 2.0     # world top, as in the registered scenarios: "tall" obstacles reach it
 R_DISC = 0.5                          # spec (h2) E1: disc obstacles of radius 0.5 m
 R_SW = UAVLimits().v_max * DWAConfig().T_p   # spec (c1): "near the goal" = within one horizon of travel
