@@ -124,10 +124,6 @@ class FusionExpert(OnboardPolicy):
         self._leader_prediction = (None, None)
         lead = base.onboard(base.possible_agents[0])
         self.raster = _raster_for(lead, self.config.astar.res_g)
-        if lead.prior.kind != "none" and self._plan(lead, self.memory[lead.agent], 0.0, lead.goal[:2]) is None:
-            raise ValueError(f"infeasible mission: the goal {lead.goal.tolist()} cannot be reached from the start "
-                             f"{lead.state[:3].tolist()} on the prior map ({lead.prior.kind}) with the "
-                             f"'{self.config.astar_layer}' raster of this controller")
 
     def act(self, observations: dict, env, weights: dict | None = None) -> dict:
         base = getattr(env, "unwrapped", env)
@@ -506,10 +502,10 @@ class FusionExpert(OnboardPolicy):
         margin = cfg.path_margin if view.is_leader else 0.0       # the leader's route keeps off walls
         path = self._search(blocked, start, goal, lim, margin, cfg.margin_detour)
         exploring = t - mem.last_progress_time < cfg.stuck_window       # not yet stuck: look at the unseen
-        if (path is None and exploring and cfg.explore_unknown and cfg.astar_layer == "passable"
-                and view.prior.kind == "none"):
-            path = self._search(self._blocked_raster(view, cfg, seen=False), start, goal, lim, margin,
-                                cfg.margin_detour)                                         # the unseen ways
+        if path is None and exploring and cfg.explore_unknown and cfg.astar_layer == "passable":
+            # the unseen ways, on the own map alone: a 2.5D prior shows tops, not the openings below them
+            path = self._search(self._blocked_raster(view, cfg, seen=False, prior=False), start, goal, lim, margin,
+                                cfg.margin_detour)
         if path is not None and view.is_leader and cfg.route_turn_cost:
             path = self._heading_route(view, blocked, goal, path, margin, inflated)
         mem.path, mem.path_found, mem.plan_goal = path, path is not None, np.array(goal_xy, dtype=np.float64)
@@ -562,10 +558,11 @@ class FusionExpert(OnboardPolicy):
         hi = lo + np.asarray(self.raster.shape) * self.raster.res - 2e-6
         return lo, hi
 
-    def _blocked_raster(self, view, cfg: ExpertConfig, seen: bool = True) -> np.ndarray:
-        """A UAV's 2D raster: its map's occupied voxels, the world bounds and the prior map (``astar_layer``);
-        ``seen=False``: a column with a tall enough run of unknown voxels is a way too (``explore_unknown``). A way's
-        free evidence is ``way_misses`` scans, or as many as the UAV has made (step k: k + 1)."""
+    def _blocked_raster(self, view, cfg: ExpertConfig, seen: bool = True, prior: bool = True) -> np.ndarray:
+        """A UAV's 2D raster: its map's occupied voxels, the world bounds and (``prior``) the prior map
+        (``astar_layer``); ``seen=False``: a column with a tall enough run of unknown voxels is a way too
+        (``explore_unknown``). A way's free evidence is ``way_misses`` scans, or as many as the UAV has made (step k:
+        k + 1)."""
         lim = view.limits
         h_b = lim.r_uav + lim.r_safe
         occ_map = view.occupancy
@@ -581,11 +578,11 @@ class FusionExpert(OnboardPolicy):
         blocked = np.zeros(self.raster.shape, bool)
         blocked[0, :] = blocked[-1, :] = blocked[:, 0] = blocked[:, -1] = True    # the x/y bounds are walls (geofence)
         _mark(blocked, self.raster, columns)
-        prior = view.prior
-        if prior.kind != "none":
+        known = view.prior
+        if prior and known.kind != "none":
             limit = z_flight - h_b if cfg.astar_layer == "band" else lim.z_max - 2 * h_b
-            cells = np.argwhere(prior.heights > limit)
-            _mark(blocked, self.raster, prior.origin + (cells + 0.5) * prior.resolution)
+            cells = np.argwhere(known.heights > limit)
+            _mark(blocked, self.raster, known.origin + (cells + 0.5) * known.resolution)
         return blocked
 
     def _follower_target(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float, slot_hidden: bool, local: _Local):
