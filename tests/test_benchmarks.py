@@ -110,6 +110,26 @@ def test_mission_draws_are_fixed_by_seed_and_index_and_every_draw_builds(monkeyp
         parallel_env(**d["kwargs"], layout_seed=d["seed"], disturbance=DisturbanceConfig(**d["disturbance"])).close()
 
 
+def test_mission_draws_airframes_change_the_config_not_the_mission(monkeypatch):
+    """``--airframes``: a share of draws also changes the env's config (its own generator, so the mission is the one
+    drawn without it); every drawn config is a valid ``EnvConfig`` that an env is built with."""
+    from uavform_env.formation_v0 import parallel_env
+
+    module = _module("mission_draws", monkeypatch)
+    args = (module.FAMILIES, (1, 16), (1.2, 3.5), (0.0, 0.6), 0.4)
+    plain = [module.draw(5, i, *args) for i in range(30)]
+    varied = [module.draw(5, i, *args, airframes=0.5) for i in range(30)]
+    assert all(p["config"] == {} for p in plain)
+    assert [{**v, "config": {}} for v in varied] == plain
+    changed = [v for v in varied if v["config"]]
+    assert 5 <= len(changed) <= 25 and {part for v in changed for part in v["config"]} >= {"uav", "sensor", "map"}
+    for v in changed[:6]:
+        cfg = module.env_config(v["config"])
+        assert all(getattr(getattr(cfg, part), name) == value
+                   for part, fields in v["config"].items() for name, value in fields.items())
+        parallel_env(**v["kwargs"], layout_seed=v["seed"], config=cfg).close()
+
+
 def test_mission_draws_fly_and_write_their_records(tmp_path, monkeypatch, capsys):
     out = tmp_path / "draws.jsonl"
     _run("mission_draws", ["--draws", "2", "--scenarios", "forest@2", "--max-steps", "5", "--out", str(out)],
@@ -122,6 +142,7 @@ def test_mission_draws_fly_and_write_their_records(tmp_path, monkeypatch, capsys
 @pytest.mark.parametrize("argv, flag", [(["--n", "5", "2"], "--n 5 2"), (["--n", "0", "3"], "--n 0 3"),
                                         (["--spacing", "0.1", "2"], "--spacing 0.1 2"),
                                         (["--still-share", "2"], "--still-share 2"), (["--draws", "0"], "--draws 0"),
+                                        (["--airframes", "-0.1"], "--airframes -0.1"),
                                         (["--scenarios", "forest@9"], "--scenarios forest@9"),
                                         (["--policy", "nope"], "--policy")])
 def test_mission_draws_refuse_bad_settings_before_flying(argv, flag, monkeypatch, capsys):
