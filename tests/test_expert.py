@@ -506,6 +506,31 @@ def test_expert_passes_the_wall_gap_by_changing_altitude(config):
     assert at_wall.any() and np.all((states[at_wall, 0, 2] > 4.0) & (states[at_wall, 0, 2] < 6.5))
 
 
+def test_prior_tops_do_not_close_a_way_the_own_map_has_seen():
+    """On the 2.5D prior the full-height wall closes every way (its top is all a heightmap shows); once the own map
+    has seen the gap under it, the leader's strict raster (own map + prior) holds a path through the gap again."""
+    from baselines.astar import plan_path
+
+    penv = parallel_env(scenario=gap_wall(), max_cycles=400, config=HEIGHTMAP_PRIOR)
+    obs, _ = penv.reset(seed=0)
+    expert = FusionExpert()
+    expert.reset(penv, seed=0)
+    env = penv.unwrapped
+
+    def strict_path():
+        view = env.onboard("uav_0")
+        lim = view.limits
+        blocked = expert._blocked_raster(view, expert.config)
+        return plan_path(blocked, expert.raster, view.state[:2], view.goal[:2], lim.r_uav + lim.r_safe,
+                         expert.config.astar)
+
+    assert strict_path() is None
+    while env.states[0, 0] < 8.5 and penv.agents:          # up to the wall (x = 10), its gap in view
+        obs, *_ = penv.step(expert.act(obs, penv))
+    path = strict_path()
+    assert path is not None and abs(path.points[:, 1] - 4.0).max() < 4.0 and path.points[-1, 0] > 14.0
+
+
 def test_standard_dwa_does_not_pass_the_wall_gap():
     penv, infos, diagnostics, states = fly(StandardDWA(), gap_wall(), 300)
     assert infos["uav_0"]["success"] == 0 and not penv.unwrapped.crashed.any()

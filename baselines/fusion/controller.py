@@ -562,7 +562,8 @@ class FusionExpert(OnboardPolicy):
         """A UAV's 2D raster: its map's occupied voxels, the world bounds and (``prior``) the prior map
         (``astar_layer``); ``seen=False``: a column with a tall enough run of unknown voxels is a way too
         (``explore_unknown``). A way's free evidence is ``way_misses`` scans, or as many as the UAV has made (step k:
-        k + 1)."""
+        k + 1). With the ``passable`` layer a cell in which the own map has seen a way (``_seen_ways``) stays open
+        where the prior is taller than the band: a 2.5D prior shows an obstacle's top, not the openings below it."""
         lim = view.limits
         h_b = lim.r_uav + lim.r_safe
         occ_map = view.occupancy
@@ -582,8 +583,29 @@ class FusionExpert(OnboardPolicy):
         if prior and known.kind != "none":
             limit = z_flight - h_b if cfg.astar_layer == "band" else lim.z_max - 2 * h_b
             cells = np.argwhere(known.heights > limit)
-            _mark(blocked, self.raster, known.origin + (cells + 0.5) * known.resolution)
+            tall = np.zeros(self.raster.shape, bool)
+            _mark(tall, self.raster, known.origin + (cells + 0.5) * known.resolution)
+            if cfg.astar_layer == "passable":
+                tall &= ~self._seen_ways(occ_map, tall, lim, 2 * h_b + res, misses)
+            blocked |= tall
         return blocked
+
+    def _seen_ways(self, occ_map, cells: np.ndarray, lim, gap: float, misses: int) -> np.ndarray:
+        """The raster cells of ``cells`` (bool raster) with a map column in which the own map shows a way: a run of
+        non-occupied voxels of height ``gap`` with free evidence (``columns_without_gap``, seen), in the band."""
+        res, raster = occ_map.resolution, self.raster
+        sub = max(1, math.ceil(raster.res / res))              # map columns across a raster cell
+        offsets = (np.arange(sub) + 0.5) * (raster.res / sub)
+        corners = raster.origin + np.argwhere(cells) * raster.res
+        xy = (corners[:, None, None, :] + np.stack(np.meshgrid(offsets, offsets, indexing="ij"), -1)).reshape(-1, 2)
+        points = np.column_stack([xy, np.full(len(xy), 0.5 * (lim.z_min + lim.z_max))])
+        closed = columns_without_gap(occ_map, points, lim.z_min, lim.z_max, gap, True, misses)
+        column = np.array([1 << 32, 1])                         # a map column's (i, j) as one integer
+        keys = [np.floor((p - occ_map.origin[:2]) / res).astype(np.int64) @ column for p in (xy, closed)]
+        open_points = xy[~np.isin(*keys)]
+        ways = np.zeros(raster.shape, bool)
+        _mark(ways, raster, open_points)
+        return ways
 
     def _follower_target(self, view, mem: _UAVMemory, cfg: ExpertConfig, t: float, slot_hidden: bool, local: _Local):
         lim = view.limits
