@@ -838,7 +838,7 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
              vz_cmd: float = 0.0, lookahead=None, clearance_now: float = math.inf, movers_pos=None,
              movers_vel=None, v_ref: float | None = None, v_cap: float | None = None,
              prev_alignment: float | None = None, drift=None, brake_share: float | None = None,
-             mover_dist: bool = True) -> DWAResult:
+             mover_dist: bool = True, goal_distance: float | None = None) -> DWAResult:
     """One DWA planning cycle: the best admissible (v, w) of the dynamic window (spec (b), (c)).
 
     state: (7,) row (x, y, z, psi, v, w, vz). goal, lookahead: (2,) or (3,); only x, y are used;
@@ -855,6 +855,8 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
     prev_alignment: c of the previous cycle's choice (E10 per_step, E11 alignment; None -> 1).
     drift: (2,) horizontal velocity (m/s) added to every rollout, e.g. a wind estimate (None: still air).
     brake_share: this cycle's ``DWAConfig.brake_share`` (None: the config's).
+    goal_distance: rho_D of E8's blend and of the approach speed profile: the distance to where the UAV has to
+    stop (None: the distance to ``goal``; inf: it only steers toward ``goal``, e.g. a path's lookahead point).
     If no sample is admissible, brakes: v = v_lo (= max(0, v0 - a_max dt) for v_min = 0), w = w0.
     """
     try:
@@ -889,13 +891,16 @@ def dwa_plan(state, limits: UAVLimits, cfg: DWAConfig, goal, obstacles, obstacle
         raise ValueError(f"brake_share={brake_share!r}: expected a share in [0, 1]")
     if not isinstance(mover_dist, bool):
         raise ValueError(f"mover_dist={mover_dist!r}: expected True or False")
+    if goal_distance is not None and (isinstance(goal_distance, bool) or not isinstance(goal_distance, (int, float))
+                                      or not goal_distance >= 0.0):
+        raise ValueError(f"goal_distance={goal_distance!r}: expected a distance >= 0 (inf: no stop ahead) or None")
     n_steps = round(cfg.T_p / limits.dt)
     if n_steps < 1:
         raise ValueError(f"DWAConfig.T_p={cfg.T_p!r} is shorter than one step (UAVLimits.dt={limits.dt!r})")
 
     v_lo, v_hi, w_lo, w_hi = _window_bounds(v0, w0, limits, v_cap)
     reach = limits.v_max * cfg.T_p
-    rho_d = math.hypot(goal_x - x, goal_y - y)
+    rho_d = math.hypot(goal_x - x, goal_y - y) if goal_distance is None else float(goal_distance)
     lam = min(1.0, rho_d / (reach if cfg.R_sw is None else cfg.R_sw)) if cfg.use_goal_dist_correction else 1.0
     if v_ref is not None:
         vel_target = v_ref

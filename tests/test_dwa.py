@@ -391,6 +391,25 @@ def test_e8_near_goal_turns_into_distance_progress():
     assert (plain.v, plain.w) != (res.v, res.w)
 
 
+def test_e8_goal_distance_is_rho_d_of_the_blend_and_the_approach_profile():
+    """``goal_distance`` replaces |goal - D| in lambda and the approach speed profile only: the distance to where the
+    UAV stops when DWA steers toward a nearer point (a path's lookahead). inf: as far from any stop as E8 off."""
+    obstacles = np.array([[3.5, 1.5, 3.0], [3.0, -2.0, 3.0]])
+    state = state_row(v=0.5, psi=0.2)
+    goal = np.array([1.5, 0.4, 3.0])                     # 1.55 m ahead: lambda < 1 and the profile brakes
+    cfg = DWAConfig.ablation("IDWA", approach_speed_profile=True)
+    near = dwa_plan(state, LIM, cfg, goal, obstacles, 0.3)
+    same = dwa_plan(state, LIM, cfg, goal, obstacles, 0.3, goal_distance=float(np.hypot(1.5, 0.4)))
+    np.testing.assert_array_equal(same.candidates.score, near.candidates.score)
+    steer = dwa_plan(state, LIM, cfg, goal, obstacles, 0.3, goal_distance=math.inf)
+    no_e8 = dwa_plan(state, LIM, replace(cfg, use_goal_dist_correction=False, approach_speed_profile=False), goal,
+                     obstacles, 0.3)
+    np.testing.assert_array_equal(steer.candidates.score, no_e8.candidates.score)
+    assert not np.array_equal(steer.candidates.score, near.candidates.score)
+    far = dwa_plan(state, LIM, cfg, goal, obstacles, 0.3, goal_distance=3.0)  # lambda = 3 / R_sw = 1, no profile
+    np.testing.assert_array_equal(far.candidates.score, steer.candidates.score)
+
+
 def test_e10_weight_known_answers():
     assert _heading_weight(1.0, 0.1, 0.2) == pytest.approx(0.1)
     assert _heading_weight(-1.0, 0.1, 0.2) == pytest.approx(0.02)
@@ -553,6 +572,8 @@ def test_config_round_trip():
     (dict(state=state_row(v=1.5)), "v0"),
     (dict(clearance_now=float("nan")), "clearance_now"),
     (dict(mover_dist=1), "mover_dist"),
+    (dict(goal_distance=-1.0), "goal_distance"),
+    (dict(goal_distance=float("nan")), "goal_distance"),
 ])
 def test_bad_inputs_name_the_argument(kwargs, match):
     args = dict(state=state_row(), limits=LIM, cfg=DWAConfig(), goal=[5.0, 0, 3],

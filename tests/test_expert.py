@@ -22,7 +22,7 @@ from baselines.fusion.rules import away_vertically
 from uavform_env import EnvConfig, parallel_env
 from uavform_env.config import DisturbanceConfig, UAVLimits
 from uavform_env.occupancy import OccupancyMap
-from uavform_env.scenarios import Mission, Scenario
+from uavform_env.scenarios import Mission, Scenario, make_scenario
 from uavform_env.world import Box
 
 HEIGHTMAP_PRIOR = EnvConfig().replace(episode=EnvConfig().episode.replace(prior_map="heightmap"))
@@ -529,6 +529,16 @@ def test_prior_tops_do_not_close_a_way_the_own_map_has_seen():
         obs, *_ = penv.step(expert.act(obs, penv))
     path = strict_path()
     assert path is not None and abs(path.points[:, 1] - 4.0).max() < 4.0 and path.points[-1, 0] > 14.0
+
+
+def test_rejoining_follower_of_a_fast_airframe_passes_the_wall_gap():
+    """v_max = 2 m/s makes E8's R_sw = v_max T_p = 6 m, beyond A*'s 3 m lookahead. While E8 took a rejoining
+    follower's lookahead point for where it stops, the approach profile flattened DWA's velocity term and the
+    clearance term held the follower at rest 0.3 m from the wall, 15 m from its slot, to the end (wall-gap seed 2)."""
+    fast = EnvConfig().replace(uav=UAVLimits(v_max=2.0))
+    scn = make_scenario("wall-gap", seed=2, n_uavs=3, formation="diamond", spacing=1.55)
+    penv, infos, _, _ = fly(FusionExpert(), scn, 900, config=fast, seed=2)
+    assert infos["uav_0"]["success"] == 1 and not penv.unwrapped.crashed.any()
 
 
 def test_standard_dwa_does_not_pass_the_wall_gap():

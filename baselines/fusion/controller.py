@@ -78,12 +78,14 @@ class _Local(NamedTuple):
 
 
 class _Target(NamedTuple):
-    """The target stage: DWA's goal, the lookahead point (E10), the speed cap and the speed reference."""
+    """The target stage: DWA's goal, the lookahead point (E10), the speed cap, the speed reference and E8's rho_D
+    (``dwa_plan(goal_distance=...)``; None: the distance to DWA's goal)."""
 
     goal: np.ndarray
     lookahead: np.ndarray
     v_cap: float | None
     v_ref: float | None
+    stop_distance: float | None
 
 
 class _Vertical(NamedTuple):
@@ -265,7 +267,12 @@ class FusionExpert(OnboardPolicy):
             clear = (local.obstacles, lim.r_uav + lim.r_safe + local.radius) if cfg.pursuit_clear else None
             v_cap = _pursuit_cap(s, lookahead, lim, lim.v_max if v_cap is None else v_cap, clear)
         v_cap = self._yield(view, local.movers_pos, local.movers_vel, cfg, v_cap)
-        return _Target(goal, lookahead, v_cap, v_ref)
+        # E8's rho_D (spec (c1): G is the follower's target slot): a follower rejoining along a path stops at its
+        # slot, not at the path's lookahead point (docs/deviations.md, "E8's rho_D of a rejoining follower")
+        rejoining = not view.is_leader and mem.on_path
+        stop_distance = math.hypot(float(view.slot[0]) - float(s[0]), float(view.slot[1]) - float(s[1])) \
+            if rejoining else None
+        return _Target(goal, lookahead, v_cap, v_ref, stop_distance)
 
     # ------------------------------------------------------------------ stage 2: vertical decision (g4)
     def _vertical_decision(self, view, mem: _UAVMemory, cfg: ExpertConfig, target: _Target, local: _Local,
@@ -364,7 +371,7 @@ class FusionExpert(OnboardPolicy):
                             lookahead=target.lookahead, clearance_now=clearance_now, movers_pos=alive_pos,
                             movers_vel=alive_vel, v_ref=target.v_ref, v_cap=vertical.v_cap,
                             prev_alignment=mem.prev_alignment, drift=drift, brake_share=share,
-                            mover_dist=mover_dist), radii
+                            mover_dist=mover_dist, goal_distance=target.stop_distance), radii
 
         vz = vertical.vz
         res, radii = plan(vz)
