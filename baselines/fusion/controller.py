@@ -85,7 +85,7 @@ class _Target(NamedTuple):
     lookahead: np.ndarray
     v_cap: float | None
     v_ref: float | None
-    stop_distance: float | None
+    stop_distance: float | None = None
 
 
 class _Vertical(NamedTuple):
