@@ -98,21 +98,13 @@ def _airframe(seed: int, i: int, share: float) -> dict:
     return changes
 
 
-def env_config(changes: dict):
-    """The ``EnvConfig`` of a draw's config changes."""
-    from uavform_env.config import EnvConfig
-
-    cfg = EnvConfig()
-    return cfg.replace(**{part: getattr(cfg, part).replace(**fields) for part, fields in changes.items()})
-
-
 def fly(mission: dict, max_steps: int, policy_name: str) -> dict:
     """Fly one drawn mission (``expert_success.fly``); its record with the outcome, the env's reason and the steps."""
-    from uavform_env.config import DisturbanceConfig
+    from uavform_env.config import DisturbanceConfig, EnvConfig
 
     kwargs = {**mission["kwargs"], "max_cycles": max_steps, "layout_seed": mission["seed"],
               "disturbance": DisturbanceConfig(**mission["disturbance"]),
-              "config": env_config(mission.get("config", {}))}
+              "config": EnvConfig.from_dict(mission.get("config", {}))}
     try:
         r = expert_success.fly(mission["kwargs"]["scenario"], mission["seed"], kwargs, policy_name)
     except ValueError as e:                 # e.g. a scenario its drawn airframe cannot fly (validate_scenario)

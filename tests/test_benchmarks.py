@@ -113,6 +113,7 @@ def test_mission_draws_are_fixed_by_seed_and_index_and_every_draw_builds(monkeyp
 def test_mission_draws_airframes_change_the_config_not_the_mission(monkeypatch):
     """``--airframes``: a share of draws also changes the env's config (its own generator, so the mission is the one
     drawn without it); every drawn config is a valid ``EnvConfig`` that an env is built with."""
+    from uavform_env.config import EnvConfig
     from uavform_env.formation_v0 import parallel_env
 
     module = _module("mission_draws", monkeypatch)
@@ -124,7 +125,7 @@ def test_mission_draws_airframes_change_the_config_not_the_mission(monkeypatch):
     changed = [v for v in varied if v["config"]]
     assert 5 <= len(changed) <= 25 and {part for v in changed for part in v["config"]} >= {"uav", "sensor", "map"}
     for v in changed[:6]:
-        cfg = module.env_config(v["config"])
+        cfg = EnvConfig.from_dict(v["config"])
         assert all(getattr(getattr(cfg, part), name) == value
                    for part, fields in v["config"].items() for name, value in fields.items())
         parallel_env(**v["kwargs"], layout_seed=v["seed"], config=cfg).close()

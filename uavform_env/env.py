@@ -212,7 +212,7 @@ class FormationEnv(ParallelEnv):
                        if d.wind_std > 0 else None)
         self.step_count = 0
         self.success = False
-        origin, shape = self.world.frame(cfg.map.resolution)
+        origin, shape = grid_frame(scn.bounds_lo, scn.bounds_hi, cfg.map.resolution)   # the maps' own grid
         store = self._map_store
         if store is not None and (store.cfg, store.n_maps) == (cfg.map, n):
             store.clear(origin, shape)                           # a new layout's grid, the same block pool

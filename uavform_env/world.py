@@ -270,7 +270,7 @@ class World:
         for i, ob in enumerate(self.obstacles):
             if not isinstance(ob, (Box, Cylinder, Sphere)):
                 raise ValueError(f"World.obstacles[{i}]={ob!r}: expected a Box, Cylinder or Sphere")
-        origin, shape = self.frame(self.res)
+        origin, shape = grid_frame(self.bounds_lo, self.bounds_hi, self.res)    # z from 0: bounds_lo z is the ground
         n_voxels = math.prod(shape)
         if n_voxels > MAX_VOXELS:
             raise ValueError(f"World.resolution={self.res!r}: the grid {shape} would have {n_voxels} voxels, "
@@ -298,13 +298,6 @@ class World:
         if pts.ndim != 2 or pts.shape[1] != 3:
             raise ValueError(f"points: expected an array of shape (P, 3), got shape {pts.shape}")
         return _clearance_kernel(np.ascontiguousarray(pts), self.boxes, self.cylinders, self.spheres)
-
-    def frame(self, res: float) -> tuple[np.ndarray, tuple[int, ...]]:
-        """Origin and cell counts of a ``res`` grid over the bounds, from the ground up (the ground truth's at
-        ``self.res``; the onboard maps' at theirs)."""
-        origin, shape = grid_frame(self.bounds_lo, self.bounds_hi, res)
-        origin[2] = 0.0
-        return origin, shape
 
     def heightmap(self, resolution) -> tuple[np.ndarray, float, np.ndarray]:
         """2.5D prior map (a DSM, as from a survey): (origin_xy (2,), res, heights (mx, my) float32).
