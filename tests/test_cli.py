@@ -325,10 +325,12 @@ def test_flight_outcome_names_the_reason():
     out = flight_outcome(_ended(line, max_cycles=399))
     assert out == {"outcome": "time-out", "reason": "the step limit (399 steps) ran out",
                    "goal_distance": pytest.approx(0.1)}
-    parked = np.concatenate([line, np.repeat(line[-1:], 400, axis=0)])                       # then 40 s still
-    parked[-1, 0, 0] = 20.0
-    parked[-301:, 0, 0] = 20.0
+    parked = np.concatenate([line[:200], np.repeat(line[199:200], 600, axis=0)])              # halfway, 60 s still
     assert flight_outcome(_ended(parked, max_cycles=799))["reason"] == "stuck: the leader moved 0.00 m in the last 30 s"
+    carried = np.concatenate([line, np.repeat(line[-1:], 400, axis=0)])                      # at the goal, then off
+    carried[-301:, 0, 1] = 1.5
+    assert flight_outcome(_ended(carried, max_cycles=799))["reason"] == \
+        "the leader reached the goal at t = 39.6 s but ended 1.5 m from it (r_goal = 0.5 m)"
 
     pair = np.stack([line[:, 0], line[:, 0] + [0.0, 2.0, 0.0]], axis=1)                      # leader + follower 1
     crashed = np.zeros((400, 2), bool)

@@ -110,7 +110,8 @@ def episode_outcome(env) -> tuple[str, str]:
     """Why the episode ended: (one of ``END_REASONS``, a sentence saying why).
 
     A crash names the first UAV to crash, what it hit and when; a time-out says whether the leader
-    reached the goal but a follower did not reach its slot, whether the leader was stuck (moved less
+    reached the goal but a follower did not reach its slot, whether the leader reached the goal (came within
+    r_goal) but ended outside it (carried off, or it rested beside it), whether the leader was stuck (moved less
     than STUCK_DISTANCE in the last STUCK_SECONDS), or that the step limit simply ran out. An episode
     still running (or cut short by the caller) is "running".
     """
@@ -140,10 +141,16 @@ def episode_outcome(env) -> tuple[str, str]:
         window = max(1, round(STUCK_SECONDS / dt))
         moved = float(np.linalg.norm(pos[-1] - pos[-1 - window])) if len(pos) > window else math.inf
         ferr = np.asarray(env.history["formation_error"][-1], dtype=np.float64)
-        if float(np.linalg.norm(pos[-1] - env.goal)) < env.config.episode.r_goal and len(ferr) > 1:
+        r_goal = env.config.episode.r_goal
+        to_goal = np.linalg.norm(pos - env.goal, axis=1)
+        if to_goal[-1] < r_goal and len(ferr) > 1:
             k = int(np.argmax(ferr[1:])) + 1
             return reason, (f"the leader reached the goal but {names[k]} ended {ferr[k]:.1f} m from its slot "
                             f"(e_f = {env.config.formation.e_f:g} m): its slot may be blocked")
+        reached = np.flatnonzero(to_goal < r_goal)
+        if to_goal[-1] >= r_goal and reached.size:
+            return reason, (f"the leader reached the goal at t = {reached[0] * dt:.1f} s but ended {to_goal[-1]:.1f} m "
+                            f"from it (r_goal = {r_goal:g} m)")
         if moved < STUCK_DISTANCE:
             return reason, f"stuck: the leader moved {moved:.2f} m in the last {STUCK_SECONDS:g} s"
         return reason, f"the step limit ({env.max_cycles} steps) ran out"
