@@ -49,12 +49,12 @@ def view(state=(0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0), is_leader=True, goal=(10.0, 
                            neighbour_ids=np.array(neighbour_ids, dtype=np.int64))
 
 
-def cycle(v, mem=None, goal=(10.0, 0.0), lookahead=(10.0, 0.0), heading_goal=(10.0, 0.0), admissible=True,
+def cycle(v, mem=None, goal=(10.0, 0.0), lookahead=(10.0, 0.0), heading_goal=None, admissible=True,
           vfh=None, movers=np.zeros((0, 3)), cfg=CFG, obstacles=np.zeros((0, 3)), radius=0.0, docking=False,
           dwa_v=0.0, dwa_clearance=0.0):
     dwa = SimpleNamespace(admissible=admissible, v=dwa_v, clearance=dwa_clearance)     # DWA's choice
     return Cycle(view=v, mem=mem or _UAVMemory(), cfg=cfg, goal=np.array(goal), lookahead=np.array(lookahead),
-                 heading_goal=np.array(heading_goal), dwa=dwa, vfh=vfh,
+                 heading_goal=np.array(goal if heading_goal is None else heading_goal), dwa=dwa, vfh=vfh,
                  movers_pos=movers, movers_vel=np.zeros_like(movers), obstacles=np.asarray(obstacles, dtype=float),
                  radii=np.full(len(obstacles), radius), docking=docking)
 
@@ -114,6 +114,22 @@ def test_dock_turn_stops_a_creeping_follower_circling_its_slot():
         assert cmd.turning == turns
         if turns:
             assert cmd.v == 0.0 and cmd.w == -W_MAX
+
+
+def test_dock_turn_of_a_follower_turns_toward_the_heading_goal_dwa_steers_for():
+    """A follower at rest with its slot ahead but 3D VFH+'s detour (DWA's heading goal) behind-left turns toward the
+    detour; turning toward the slot behind a tree, a follower at rest against the tree turned to and fro with DWA."""
+    follower = dict(is_leader=False, goal=(30.0, 0.0, 3.0), leader_speed=0.0)
+    cmd = Command(0.0, -0.1, 0.0)
+    dock_turn(cmd, cycle(view(**follower), goal=(2.0, 0.1), heading_goal=(-0.5, 2.0)))
+    assert cmd.turning and cmd.v == 0.0 and cmd.w == W_MAX
+    cmd = Command(0.0, -0.1, 0.0)
+    dock_turn(cmd, cycle(view(**follower), goal=(-0.5, 2.0), heading_goal=(2.0, 0.1)))
+    assert not cmd.turning and cmd.w == -0.1                         # the detour lies ahead: DWA's command stands
+    cmd = Command(0.0, -0.1, 0.0)                                    # dock_turn_toward="target": the rule before
+    dock_turn(cmd, cycle(view(**follower), goal=(-0.5, 2.0), heading_goal=(2.0, 0.1),
+                         cfg=CFG.replace(dock_turn_toward="target")))
+    assert cmd.turning and cmd.w == W_MAX
 
 
 def test_reverse_turn_turns_toward_a_lookahead_behind_unless_already_turning():

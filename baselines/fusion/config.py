@@ -21,6 +21,7 @@ PARK_HEADINGS = ("nearest", "followers")
 LEADER_PACES = ("slot", "trail")
 COLUMN_SHAPES = ("rigid", "trail")
 DOCK_TURN_SPEEDS = ("stopped", "stop")
+DOCK_TURN_TOWARD = ("heading_goal", "target")
 
 
 @dataclass(frozen=True)
@@ -60,6 +61,9 @@ class ExpertConfig(Config):
                        place toward its target when that lies more than this far off its nose and at least
                        e_f / 2 away; DWA's rotation cost and sum-normalised heading term otherwise hold it at
                        rest there (w = 0 wins at v = 0) [X]
+    dock_turn_toward   where such a follower turns: ``"heading_goal"``, the point DWA steers for, which is 3D VFH+'s
+                       detour when it takes one; ``"target"``, its target whatever 3D VFH+ says (before session 31):
+                       a follower at rest against a tree with its target behind it turned to and fro with DWA [X]
     dock_turn_speed    which followers ``dock_turn_angle`` turns in place: ``"stopped"``, below
                        ``leader_stopped_speed``; ``"stop"``, those that stop within e_f / 2 at a_max (v^2 < a_max e_f,
                        0.32 m/s): a follower creeping at 0.06-0.1 m/s with its slot 0.7 m away and 80 degrees off
@@ -319,6 +323,7 @@ class ExpertConfig(Config):
     leader_stopped_speed: float = 0.05
     dock_turn_angle: float = math.radians(45.0)
     dock_turn_speed: str = "stop"
+    dock_turn_toward: str = "heading_goal"
     dock_radius: float = 4.0
     reverse_turn_angle: float = math.radians(100.0)
     final_approach_free: bool = True
@@ -422,6 +427,7 @@ class ExpertConfig(Config):
         "leader_pace": one_of(LEADER_PACES),
         "column_shape": one_of(COLUMN_SHAPES),
         "dock_turn_speed": one_of(DOCK_TURN_SPEEDS),
+        "dock_turn_toward": one_of(DOCK_TURN_TOWARD),
         "dwa_map_level": integer(0, 4),
         "debounce": integer(1, 100),
         "trail_window": integer(1),

@@ -73,11 +73,13 @@ def braking_fallback(cmd: Command, c: Cycle) -> None:
 
 
 def dock_turn(cmd: Command, c: Cycle) -> None:
-    """[X] ``dock_turn_angle``, ``dock_radius``, ``dock_turn_speed``: a UAV closing on a fixed target (the leader
-    within ``dock_radius`` of the goal; a slow follower of a parked leader, at least e_f / 2 from its slot) that
-    lies more than ``dock_turn_angle`` off its nose turns in place toward it. A follower is slow below
-    ``leader_stopped_speed`` (``dock_turn_speed="stopped"``) or when it stops within e_f / 2 at a_max
-    (``"stop"``: v^2 < a_max e_f)."""
+    """[X] ``dock_turn_angle``, ``dock_radius``, ``dock_turn_speed``, ``dock_turn_toward``: a UAV closing on a fixed
+    target (the leader within ``dock_radius`` of the goal; a slow follower of a parked leader, at least e_f / 2 from
+    its slot) that lies more than ``dock_turn_angle`` off its nose turns in place toward it; a follower, with
+    ``dock_turn_toward="heading_goal"``, toward the point DWA steers for, which is 3D VFH+'s detour when it takes one
+    (turned toward its target behind a tree instead, a follower at rest against the tree turned to and fro with DWA
+    for 250 s: drawn forest mission, seed 12 draw 33). A follower is slow below ``leader_stopped_speed``
+    (``dock_turn_speed="stopped"``) or when it stops within e_f / 2 at a_max (``"stop"``: v^2 < a_max e_f)."""
     view, cfg = c.view, c.cfg
     s = view.state
     if not view.is_leader and not (leader_parked(view, cfg) and _docking_slow(s[V], view, cfg)):
@@ -87,6 +89,8 @@ def dock_turn(cmd: Command, c: Cycle) -> None:
         docking = math.hypot(to_goal[0], to_goal[1]) < cfg.dock_radius
     else:
         docking = math.hypot(to_goal[0], to_goal[1]) >= view.config.formation.e_f / 2
+        if cfg.dock_turn_toward == "heading_goal":
+            to_goal = c.heading_goal - s[:2]
     if docking and abs(bearing_error(s, to_goal)) > cfg.dock_turn_angle:
         cmd.v, cmd.w, cmd.turning = 0.0, turn_toward(s, to_goal, view.limits.w_max), True
 
