@@ -30,15 +30,20 @@ def env_kwargs(scenario: str, max_steps: int, n: int | None, formation: str | No
 
 
 def fly(scenario: str, seed: int, kwargs: dict, policy_name: str) -> dict:
-    """One episode of ``parallel_env(**kwargs)`` flown by the policy from ``seed``: whether it succeeded and collided,
-    the env's end reason and its sentence (``metrics.episode_outcome``), the steps and the wall time."""
+    """One episode of ``parallel_env(**kwargs)`` flown by the policy from ``seed``: ``fly_env``'s record."""
     from uavform_env.formation_v0 import parallel_env
+
+    t0 = time.perf_counter()
+    return fly_env(parallel_env(**kwargs), scenario, seed, policy_name, t0)
+
+
+def fly_env(penv, scenario: str, seed: int, policy_name: str, t0: float) -> dict:
+    """One episode of ``penv`` flown by the policy from ``seed``: whether it succeeded and collided, the env's end
+    reason and its sentence (``metrics.episode_outcome``), the steps and the wall time since ``t0``."""
     from uavform_env.metrics import episode_outcome
     from uavform_env.policies import load_policy
     from uavform_env.rollout import run_episode
 
-    t0 = time.perf_counter()
-    penv = parallel_env(**kwargs)
     metrics = run_episode(penv, load_policy(policy_name), seed)
     outcome, detail = episode_outcome(penv.unwrapped)
     return {"scenario": scenario, "seed": seed, "success": bool(metrics["success"]),

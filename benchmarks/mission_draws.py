@@ -99,16 +99,20 @@ def _airframe(seed: int, i: int, share: float) -> dict:
 
 
 def fly(mission: dict, max_steps: int, policy_name: str) -> dict:
-    """Fly one drawn mission (``expert_success.fly``); its record with the outcome, the env's reason and the steps."""
+    """Fly one drawn mission (``expert_success.fly_env``), or refuse it when its env cannot be built or reset (a
+    mission its drawn airframe cannot fly); its record with the outcome, the env's reason and the steps."""
     from uavform_env.config import DisturbanceConfig, EnvConfig
+    from uavform_env.formation_v0 import parallel_env
 
-    kwargs = {**mission["kwargs"], "max_cycles": max_steps, "layout_seed": mission["seed"],
-              "disturbance": DisturbanceConfig(**mission["disturbance"]),
-              "config": EnvConfig.from_dict(mission.get("config", {}))}
-    try:
-        r = expert_success.fly(mission["kwargs"]["scenario"], mission["seed"], kwargs, policy_name)
-    except ValueError as e:                 # e.g. a scenario its drawn airframe cannot fly (validate_scenario)
+    t0 = time.perf_counter()
+    try:                                    # a mission its drawn airframe cannot fly is refused here (validate_scenario)
+        penv = parallel_env(**mission["kwargs"], max_cycles=max_steps, layout_seed=mission["seed"],
+                            disturbance=DisturbanceConfig(**mission["disturbance"]),
+                            config=EnvConfig.from_dict(mission.get("config", {})))
+        penv.reset(seed=mission["seed"])
+    except ValueError as e:
         return {**mission, "outcome": "refused", "detail": str(e).splitlines()[0], "steps": 0, "seconds": 0.0}
+    r = expert_success.fly_env(penv, mission["kwargs"]["scenario"], mission["seed"], policy_name, t0)
     return {**mission, "outcome": r["outcome"], "detail": r["detail"], "steps": r["steps"],
             "seconds": round(r["seconds"], 1)}
 
