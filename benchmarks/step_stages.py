@@ -34,7 +34,7 @@ STAGES = (
     ("env.sensor", "scan", "ray cast"),
     ("uavform_env.env", "perturb_scan", "sensor faults"),
     ("env._map_store", "integrate", "map integrate"),
-    ("env", "_true_slots", "slots"),
+    ("env", "true_slots", "slots"),
     ("uavform_env.env", "slot_distances", "slot distances"),
     ("uavform_env.env", "compute_rewards", "rewards"),
     ("uavform_env.env", "build_observations", "observations"),

@@ -292,9 +292,10 @@ def test_an_env_checks_for_cold_kernels_at_its_first_reset_only(monkeypatch):
 
 
 # ----------------------------------------------------------------------------- why a flight ended
-def _ended(positions, crashed=None, cause=None, ferr=None, success=False, max_cycles=1000):
+def _ended(positions, crashed=None, cause=None, ferr=None, success=False, max_cycles=1000, clearance=np.inf):
     """A stand-in for a finished env: the attributes episode_outcome reads, goal at (40, 0, 3); ``cause``
-    is each UAV's crash cause (a name of CRASH_CAUSES)."""
+    is each UAV's crash cause (a name of CRASH_CAUSES); the slots lie in a line to the leader's left, 2 m apart,
+    ``clearance`` m from the nearest obstacle."""
     from types import SimpleNamespace
 
     from uavform_env.config import EnvConfig
@@ -312,9 +313,12 @@ def _ended(positions, crashed=None, cause=None, ferr=None, success=False, max_cy
         end = "timeout" if steps - 1 >= max_cycles else "running"
     history = {"positions": list(pos), "crashed": list(crashed),
                "formation_error": list(np.zeros((steps, n)) if ferr is None else ferr)}
+    slots = pos[-1, :1] + np.arange(n)[:, None] * [0.0, 2.0, 0.0]                           # a line to the left
     return SimpleNamespace(config=EnvConfig(), history=history, goal=np.array([40.0, 0.0, 3.0]), success=success,
                            n_uavs=n, crash_cause=causes, end_reason=END_REASONS.index(end), step_count=steps - 1,
-                           max_cycles=max_cycles)
+                           max_cycles=max_cycles, true_slots=lambda: slots,
+                           scenario=SimpleNamespace(bounds_lo=(-10.0, -10.0, 0.0), bounds_hi=(50.0, 10.0, 12.0)),
+                           world=SimpleNamespace(clearance=lambda p: np.full(len(p), clearance)))
 
 
 def test_flight_outcome_names_the_reason():
@@ -345,6 +349,14 @@ def test_flight_outcome_names_the_reason():
         _ended(pair, crashed, ["none", "geofence"]))["reason"]
     ferr = np.zeros((400, 2))
     ferr[-1, 1] = 3.5
-    blocked = flight_outcome(_ended(np.stack([line[:, 0]] * 2, axis=1), ferr=ferr, max_cycles=399))
-    assert blocked["reason"] == "the leader reached the goal but uav_1 (follower 1) ended 3.5 m from its slot (e_f = 0.5 m): " \
-                                "its slot may be blocked"
+    pair = np.stack([line[:, 0]] * 2, axis=1)
+    late = "the leader reached the goal but uav_1 (follower 1) ended 3.5 m from its slot (e_f = 0.5 m): "
+    assert flight_outcome(_ended(pair, ferr=ferr, max_cycles=399))["reason"] == late + "its slot is clear"
+    assert flight_outcome(_ended(pair, ferr=ferr, max_cycles=399, clearance=2.25))["reason"] == \
+        late + "its slot is clear (2.2 m from the nearest obstacle)"
+    assert flight_outcome(_ended(pair, ferr=ferr, max_cycles=399, clearance=0.3))["reason"] == \
+        late + "its slot (39.90, 2.00, 3.00) has clearance 0.300 m < r_uav + r_safe = 0.5 m"
+    narrow = _ended(pair, ferr=ferr, max_cycles=399)
+    narrow.scenario.bounds_hi = (50.0, 1.0, 12.0)                             # the slot, 2 m to the left, is outside
+    assert flight_outcome(narrow)["reason"] == \
+        late + "its slot (39.90, 2.00, 3.00) lies outside the world bounds (-10.0, -10.0, 0.0) .. (50.0, 1.0, 12.0)"

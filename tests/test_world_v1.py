@@ -160,7 +160,7 @@ def test_version_2_followers_fly_their_slots_at_the_leader_altitude():
     assert view.slot_altitude == "leader" and view.slot[2] == pytest.approx(view.leader_state[2])
     penv.step({a: np.array([1.0, 0.0, 1.0], np.float32) for a in penv.agents})
     view = env.onboard("uav_2")
-    assert view.slot[2] == pytest.approx(env.broadcast[0, 2]) and env._true_slots()[1, 2] == env.states[0, 2]
+    assert view.slot[2] == pytest.approx(env.broadcast[0, 2]) and env.true_slots()[1, 2] == env.states[0, 2]
     v1 = parallel_env(scenario="forest@1", n_uavs=4, formation="diamond", max_cycles=5)
     v1.reset(seed=3)
     assert v1.unwrapped.onboard("uav_2").slot[2] == 3.0 and v1.unwrapped.slot_altitude == "z_ref"

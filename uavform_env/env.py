@@ -222,7 +222,7 @@ class FormationEnv(ParallelEnv):
         self.maps = self._map_store.maps
         self._sense()
         self.agents = list(self.possible_agents)
-        ferr, self._target_dist = slot_distances(self.states, self._true_slots(), self.goal)
+        ferr, self._target_dist = slot_distances(self.states, self.true_slots(), self.goal)
         clearance = self._clearance()
         self.history = {"positions": [self.states[:, :3].copy()], "yaw": [self.states[:, PSI].copy()],
                         "w": [self.states[:, W].copy()], "formation_error": [ferr],
@@ -282,7 +282,7 @@ class FormationEnv(ParallelEnv):
             self.states[crashed_now, V] = self.states[crashed_now, W] = self.states[crashed_now, VZ] = 0.0
 
         self._sense()
-        ferr, target_dist = slot_distances(self.states, self._true_slots(), self.goal)
+        ferr, target_dist = slot_distances(self.states, self.true_slots(), self.goal)
         goal_dist = self.goal_distance()
         leader_ok = self.active[0] and goal_dist < cfg.episode.r_goal
         followers_ok = (ferr[1:][self.active[1:]] < cfg.formation.e_f).all()
@@ -367,7 +367,8 @@ class FormationEnv(ParallelEnv):
         """The leader's 3D distance to the goal (the infos' ``goal_distance``)."""
         return float(np.linalg.norm(self.states[0, :3] - self.goal))
 
-    def _true_slots(self) -> np.ndarray:
+    def true_slots(self) -> np.ndarray:
+        """World positions (N, 3) of the formation's slots at the leader's true state (row 0: the leader's)."""
         lead = self.states[0]
         return formation_slots(lead[:3], lead[PSI], self.offsets, self.config.formation.z_ref, self.slot_altitude)
 

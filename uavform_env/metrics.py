@@ -13,6 +13,7 @@ import numpy as np
 
 from .dynamics import wrap_all
 from .env import CRASH_CAUSES, END_REASONS
+from .scenarios import cannot_stand
 
 METRIC_NAMES = (
     "success", "collision", "timeout", "flight_time", "path_length_leader", "path_length_mean", "min_clearance",
@@ -106,11 +107,23 @@ STUCK_DISTANCE = 1.0
 _CRASHED_INTO = {"obstacle": "an obstacle", "geofence": "the edge of the world (left its x/y bounds)"}
 
 
+def _slot_standing(env, k: int) -> str:
+    """Whether UAV k's slot at the leader's final state is a place a UAV can stand (``scenarios.cannot_stand``:
+    inside the bounds and the altitude band, r_uav + r_safe from every obstacle), said from the true world."""
+    slot = env.true_slots()[k:k + 1]
+    bad, describe = cannot_stand(env.scenario, env.config.uav, env.world, slot)
+    if bad[0]:
+        return f"its slot {describe(0)}"
+    clearance = float(env.world.clearance(slot)[0])
+    return "its slot is clear" + (f" ({clearance:.1f} m from the nearest obstacle)" if math.isfinite(clearance) else "")
+
+
 def episode_outcome(env) -> tuple[str, str]:
     """Why the episode ended: (one of ``END_REASONS``, a sentence saying why).
 
     A crash names the first UAV to crash, what it hit and when; a time-out says whether the leader
-    reached the goal but a follower did not reach its slot, whether the leader reached the goal (came within
+    reached the goal but a follower did not reach its slot (and whether that slot, at the leader's final state, is
+    clear or why a UAV cannot stand there), whether the leader reached the goal (came within
     r_goal) but ended outside it (carried off, or it rested beside it), whether the leader was stuck (moved less
     than STUCK_DISTANCE in the last STUCK_SECONDS), or that the step limit simply ran out. An episode
     still running (or cut short by the caller) is "running".
@@ -146,7 +159,7 @@ def episode_outcome(env) -> tuple[str, str]:
         if to_goal[-1] < r_goal and len(ferr) > 1:
             k = int(np.argmax(ferr[1:])) + 1
             return reason, (f"the leader reached the goal but {names[k]} ended {ferr[k]:.1f} m from its slot "
-                            f"(e_f = {env.config.formation.e_f:g} m): its slot may be blocked")
+                            f"(e_f = {env.config.formation.e_f:g} m): {_slot_standing(env, k)}")
         reached = np.flatnonzero(to_goal < r_goal)
         if to_goal[-1] >= r_goal and reached.size:
             return reason, (f"the leader reached the goal at t = {reached[0] * dt:.1f} s but ended {to_goal[-1]:.1f} m "

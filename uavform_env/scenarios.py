@@ -933,10 +933,10 @@ def validate_scenario(scn: Scenario, limits: UAVLimits, z_ref: float, world: Wor
     except ValueError as exc:
         problems.append(str(exc))
     pts = np.array(points)
-    bad, describe = _standing(scn, limits, world, pts, band=np.array([name != "goal" for name in names]))
+    bad, describe = cannot_stand(scn, limits, world, pts, band=np.array([name != "goal" for name in names]))
     problems += [f"{names[k]} {describe(k)}" for k in np.flatnonzero(bad)]
     if goal_slots is not None:
-        blocked, describe = _standing(scn, limits, world, goal_slots.reshape(-1, 3), band=False)
+        blocked, describe = cannot_stand(scn, limits, world, goal_slots.reshape(-1, 3), band=False)
         blocked = blocked.reshape(goal_slots.shape[:2])
         if blocked.any(axis=1).all():
             j = int(np.flatnonzero(blocked[0])[0])
@@ -948,7 +948,7 @@ def validate_scenario(scn: Scenario, limits: UAVLimits, z_ref: float, world: Wor
                          + "; ".join(problems))
 
 
-def _standing(scn: Scenario, limits: UAVLimits, world: World, pts: np.ndarray, band=True):
+def cannot_stand(scn: Scenario, limits: UAVLimits, world: World, pts: np.ndarray, band=True):
     """Which points (m, 3) a UAV cannot stand on (outside the bounds, or the altitude band where ``band`` (a
     bool, or one per point) says so, or too close to an obstacle), and ``describe(k)``: point k and why, for
     the error message."""
