@@ -496,10 +496,10 @@ def test_records_written_before_a_metric_or_outcome_existed_stay_readable(tiny, 
     assert row["metrics"]["planning_ms_p95"]["recorded"] == 0 and "| planning_ms_p95 (ms) | absent" in text
     assert row["outcomes"] == {"timeout": 2}
     assert next(r for r in summary["policies"] if r["policy"] == EXPLODING)["outcomes"] == {"failed": 2}
-    from uavform_env.evaluation.table import episode_outcome
+    from uavform_env.evaluation.table import record_outcome
     before = {"status": "ok", "metrics": {"success": 1.0, "collision": 1.0}}
-    assert episode_outcome(before) == "success-with-crash"
-    assert episode_outcome({"status": "ok", "metrics": {"success": 0.0, "collision": 1.0}}) == "crash"
+    assert record_outcome(before) == "success-with-crash"
+    assert record_outcome({"status": "ok", "metrics": {"success": 0.0, "collision": 1.0}}) == "crash"
 
 
 def test_every_failed_episode_says_why(tiny, serial_run):

@@ -65,7 +65,7 @@ def episode_values(record: dict) -> dict:
     return {m: (0.0 if m == "success" else math.nan) for m in METRIC_NAMES}
 
 
-def episode_outcome(record: dict) -> str:
+def record_outcome(record: dict) -> str:
     """One of ``OUTCOMES``; records written before outcomes were recorded get theirs from the metrics."""
     if "outcome" in record:
         return record["outcome"]
@@ -132,7 +132,7 @@ def summarize(suite: Suite, records: list[dict], improvement: bool = True) -> di
             for r, v in zip(ordered, values):
                 split.setdefault(getattr(episodes[r["episode"]], attribute), []).append(v)
             groups[label] = {g: {m: _rate(vs, m) for m in ("success", "collision")} for g, vs in split.items()}
-        outcomes = [episode_outcome(r) for r in ordered]
+        outcomes = [record_outcome(r) for r in ordered]
         rows.append({"policy": policy, "episodes": len(ordered), "failed": sum(r["status"] != "ok" for r in ordered),
                      "code": sorted({r.get("code", "unknown") for r in ordered}),
                      "complete": len(ordered) == len(suite.episodes), "metrics": metrics, "groups": groups,
@@ -306,7 +306,7 @@ def to_failures_csv(suite: Suite, records: list[dict]) -> str:
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(["policy", "episode", "outcome", "detail", "diagnostics"])
     for r in sorted(records, key=lambda r: (r["policy"], order[r["episode"]])):
-        outcome = episode_outcome(r)
+        outcome = record_outcome(r)
         if outcome != "success":
             diagnostics = r.get("diagnostics")
             writer.writerow([r["policy"], r["episode"], outcome, r.get("outcome_detail", ""),
