@@ -159,7 +159,7 @@ def test_quiet_prints_one_outcome_line_and_a_single_uav_has_no_formation_metrics
     assert fly(tmp_path, "--policy", "hover", "--n-uavs", "1", "--max-steps", "5", "--quiet") == 0
     out = capsys.readouterr().out
     assert out.count("\n") == 1 and out.startswith("TIME-OUT: hover on forest, 1 UAV (") and ", seed 0, 5 steps" in out
-    assert "nan" not in out and out.rstrip().endswith("from the goal: the step limit (5 steps) ran out")
+    assert "nan" not in out and out.rstrip().endswith("from the goal: the step limit (5 steps) ran out; the leader flew 0.0 m, 0.00 m/s on average")
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["outcome"] == "time-out" and summary["code_version"] == code_version()
     assert summary["units"]["goal_distance"] == "m" and summary["units"]["flight_time"] == "s"
@@ -327,7 +327,8 @@ def test_flight_outcome_names_the_reason():
     line = np.linspace([0.0, 0.0, 3.0], [39.9, 0.0, 3.0], 400)[:, None, :]                  # one UAV, 399 steps
     assert flight_outcome(_ended(line, success=True))["outcome"] == "success"
     out = flight_outcome(_ended(line, max_cycles=399))
-    assert out == {"outcome": "time-out", "reason": "the step limit (399 steps) ran out",
+    assert out == {"outcome": "time-out",
+                   "reason": "the step limit (399 steps) ran out; the leader flew 39.9 m, 1.00 m/s on average",
                    "goal_distance": pytest.approx(0.1)}
     parked = np.concatenate([line[:200], np.repeat(line[199:200], 600, axis=0)])              # halfway, 60 s still
     assert flight_outcome(_ended(parked, max_cycles=799))["reason"] == "stuck: the leader moved 0.00 m in the last 30 s"
@@ -351,12 +352,19 @@ def test_flight_outcome_names_the_reason():
     ferr[-1, 1] = 3.5
     pair = np.stack([line[:, 0]] * 2, axis=1)
     late = "the leader reached the goal but uav_1 (follower 1) ended 3.5 m from its slot (e_f = 0.5 m): "
-    assert flight_outcome(_ended(pair, ferr=ferr, max_cycles=399))["reason"] == late + "its slot is clear"
+    moving = "; it was still moving"
+    assert flight_outcome(_ended(pair, ferr=ferr, max_cycles=399))["reason"] == late + "its slot is clear" + moving
     assert flight_outcome(_ended(pair, ferr=ferr, max_cycles=399, clearance=2.25))["reason"] == \
-        late + "its slot is clear (2.2 m from the nearest obstacle)"
+        late + "its slot is clear (2.2 m from the nearest obstacle)" + moving
     assert flight_outcome(_ended(pair, ferr=ferr, max_cycles=399, clearance=0.3))["reason"] == \
-        late + "its slot (39.90, 2.00, 3.00) has clearance 0.300 m < r_uav + r_safe = 0.5 m"
+        late + "its slot (39.90, 2.00, 3.00) has clearance 0.300 m < r_uav + r_safe = 0.5 m" + moving
+    halted = pair.copy()
+    halted[-121:, 1] = halted[-121, 1] + [0.0, 0.25, 0.0] * np.linspace(0.0, 1.0, 121)[:, None]   # 12 s, 0.25 m
+    assert flight_outcome(_ended(halted, ferr=ferr, max_cycles=399))["reason"] == \
+        late + "its slot is clear; it had stood within 0.3 m of there for the last 12 s"
+    halted[-40, 1] += [0.0, -0.3, 0.0]                                          # >= 0.3 m off 3.9 s before the end
+    assert flight_outcome(_ended(halted, ferr=ferr, max_cycles=399))["reason"].endswith(moving)
     narrow = _ended(pair, ferr=ferr, max_cycles=399)
     narrow.scenario.bounds_hi = (50.0, 1.0, 12.0)                             # the slot, 2 m to the left, is outside
     assert flight_outcome(narrow)["reason"] == \
-        late + "its slot (39.90, 2.00, 3.00) lies outside the world bounds (-10.0, -10.0, 0.0) .. (50.0, 1.0, 12.0)"
+        late + "its slot (39.90, 2.00, 3.00) lies outside the world bounds (-10.0, -10.0, 0.0) .. (50.0, 1.0, 12.0)" + moving

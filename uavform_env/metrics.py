@@ -104,6 +104,10 @@ def episode_metrics(env, planning_seconds: np.ndarray | None = None, break_thres
 # A time-out is "stuck" when the leader moved less than STUCK_DISTANCE (m) in the last STUCK_SECONDS (s).
 STUCK_SECONDS = 30.0
 STUCK_DISTANCE = 1.0
+# A follower left off its slot "stood still" when it stayed within STILL_DISTANCE (m) of where it ended for at
+# least STILL_SECONDS (s) before the end.
+STILL_SECONDS = 5.0
+STILL_DISTANCE = 0.3
 _CRASHED_INTO = {"obstacle": "an obstacle", "geofence": "the edge of the world (left its x/y bounds)"}
 
 
@@ -118,15 +122,22 @@ def _slot_standing(env, k: int) -> str:
     return "its slot is clear" + (f" ({clearance:.1f} m from the nearest obstacle)" if math.isfinite(clearance) else "")
 
 
+def _still_for(track: np.ndarray, dt: float) -> float:
+    """How long (s) before the end of ``track`` (T, 3) its UAV had stayed within STILL_DISTANCE of where it ended."""
+    moved = np.flatnonzero(np.linalg.norm(track - track[-1], axis=1) >= STILL_DISTANCE)
+    return (len(track) - 1 - (int(moved[-1]) if moved.size else 0)) * dt
+
+
 def episode_outcome(env) -> tuple[str, str]:
     """Why the episode ended: (one of ``END_REASONS``, a sentence saying why).
 
     A crash names the first UAV to crash, what it hit and when; a time-out says whether the leader
-    reached the goal but a follower did not reach its slot (and whether that slot, at the leader's final state, is
-    clear or why a UAV cannot stand there), whether the leader reached the goal (came within
+    reached the goal but a follower did not reach its slot (whether that slot, at the leader's final state, is
+    clear or why a UAV cannot stand there, and whether the follower stood still at the end: within STILL_DISTANCE
+    of where it ended for STILL_SECONDS or more), whether the leader reached the goal (came within
     r_goal) but ended outside it (carried off, or it rested beside it), whether the leader was stuck (moved less
-    than STUCK_DISTANCE in the last STUCK_SECONDS), or that the step limit simply ran out. An episode
-    still running (or cut short by the caller) is "running".
+    than STUCK_DISTANCE in the last STUCK_SECONDS), or that the step limit simply ran out (and how far the leader
+    flew, at what mean speed). An episode still running (or cut short by the caller) is "running".
     """
     reason = END_REASONS[env.end_reason]
     dt = env.config.uav.dt
@@ -150,7 +161,8 @@ def episode_outcome(env) -> tuple[str, str]:
         return reason, (f"{what} at step {step} (t = {step * dt:.1f} s)"
                         + (f"; {later} more crashed later" if later else ""))
     if reason == "timeout":
-        pos = np.asarray(env.history["positions"])[:, 0]  # the leader's track
+        track = np.asarray(env.history["positions"])
+        pos = track[:, 0]  # the leader's
         window = max(1, round(STUCK_SECONDS / dt))
         moved = float(np.linalg.norm(pos[-1] - pos[-1 - window])) if len(pos) > window else math.inf
         ferr = np.asarray(env.history["formation_error"][-1], dtype=np.float64)
@@ -158,13 +170,18 @@ def episode_outcome(env) -> tuple[str, str]:
         to_goal = np.linalg.norm(pos - env.goal, axis=1)
         if to_goal[-1] < r_goal and len(ferr) > 1:
             k = int(np.argmax(ferr[1:])) + 1
+            still = _still_for(track[:, k], dt)
+            motion = (f"it had stood within {STILL_DISTANCE:g} m of there for the last {still:.0f} s"
+                      if still >= STILL_SECONDS else "it was still moving")
             return reason, (f"the leader reached the goal but {names[k]} ended {ferr[k]:.1f} m from its slot "
-                            f"(e_f = {env.config.formation.e_f:g} m): {_slot_standing(env, k)}")
+                            f"(e_f = {env.config.formation.e_f:g} m): {_slot_standing(env, k)}; {motion}")
         reached = np.flatnonzero(to_goal < r_goal)
         if to_goal[-1] >= r_goal and reached.size:
             return reason, (f"the leader reached the goal at t = {reached[0] * dt:.1f} s but ended {to_goal[-1]:.1f} m "
                             f"from it (r_goal = {r_goal:g} m)")
         if moved < STUCK_DISTANCE:
             return reason, f"stuck: the leader moved {moved:.2f} m in the last {STUCK_SECONDS:g} s"
-        return reason, f"the step limit ({env.max_cycles} steps) ran out"
+        flown = float(np.linalg.norm(np.diff(pos, axis=0), axis=1).sum())
+        return reason, (f"the step limit ({env.max_cycles} steps) ran out; the leader flew {flown:.1f} m, "
+                        f"{flown / max(len(pos) - 1, 1) / dt:.2f} m/s on average")
     return reason, ""
