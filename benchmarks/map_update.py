@@ -1,7 +1,7 @@
 """Time one UAV-step of onboard perception: scan + map integrate + 5 m sphere query.
 
-Field: 40 x 30 x 10 m of random vertical cylinders at 0.2 m, default SensorConfig (40 x 9 rays,
-r_max 8 m), UAVs flying straight through it. The same scans also go into octomap-python's
+Field: 40 x 30 x 10 m of random vertical cylinders at 0.2 m, the default SensorConfig (its rays and r_max are
+printed with the result), UAVs flying straight through it. The same scans also go into octomap-python's
 insertPointCloud for comparison (if installed). Target: scan + integrate + query << 0.3 ms.
 
     python benchmarks/map_update.py [--uavs 5] [--steps 300] [--repeats 3] [--seed 0]
