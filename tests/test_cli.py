@@ -159,7 +159,8 @@ def test_quiet_prints_one_outcome_line_and_a_single_uav_has_no_formation_metrics
     assert fly(tmp_path, "--policy", "hover", "--n-uavs", "1", "--max-steps", "5", "--quiet") == 0
     out = capsys.readouterr().out
     assert out.count("\n") == 1 and out.startswith("TIME-OUT: hover on forest, 1 UAV (") and ", seed 0, 5 steps" in out
-    assert "nan" not in out and out.rstrip().endswith("from the goal: the step limit (5 steps) ran out; the leader flew 0.0 m, 0.00 m/s on average")
+    assert "nan" not in out and out.rstrip().endswith(
+        "from the goal: the step limit (5 steps) ran out; the leader flew 0.0 m, 0.00 m/s on average")
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["outcome"] == "time-out" and summary["code_version"] == code_version()
     assert summary["units"]["goal_distance"] == "m" and summary["units"]["flight_time"] == "s"
@@ -367,4 +368,5 @@ def test_flight_outcome_names_the_reason():
     narrow = _ended(pair, ferr=ferr, max_cycles=399)
     narrow.scenario.bounds_hi = (50.0, 1.0, 12.0)                             # the slot, 2 m to the left, is outside
     assert flight_outcome(narrow)["reason"] == \
-        late + "its slot (39.90, 2.00, 3.00) lies outside the world bounds (-10.0, -10.0, 0.0) .. (50.0, 1.0, 12.0)" + moving
+        late + "its slot (39.90, 2.00, 3.00) lies outside the world bounds (-10.0, -10.0, 0.0) .. (50.0, 1.0, 12.0)" \
+        + moving
