@@ -22,6 +22,11 @@ METRIC_NAMES = (
 )
 
 
+def _path_lengths(positions: np.ndarray) -> np.ndarray:
+    """How far each UAV flew (N,): the summed step lengths of its track in ``positions`` (T+1, N, 3)."""
+    return np.linalg.norm(np.diff(positions, axis=0), axis=2).sum(axis=0)
+
+
 def episode_metrics(env, planning_seconds: np.ndarray | None = None, break_threshold: float = 1.0,
                     near_goal_radius: float | None = None) -> dict:
     """Metrics of the episode the env just played.
@@ -45,8 +50,7 @@ def episode_metrics(env, planning_seconds: np.ndarray | None = None, break_thres
     steps = pos.shape[0] - 1
     n = pos.shape[1]
 
-    seg = np.linalg.norm(np.diff(pos, axis=0), axis=2)          # (T, N)
-    path = seg.sum(axis=0)
+    path = _path_lengths(pos)
     turning = np.abs(wrap_all(np.diff(yaw, axis=0))).sum(axis=0)
     if n > 1:
         d = np.linalg.norm(pos[:, :, None, :] - pos[:, None, :, :], axis=3)
@@ -181,7 +185,7 @@ def episode_outcome(env) -> tuple[str, str]:
                             f"from it (r_goal = {r_goal:g} m)")
         if moved < STUCK_DISTANCE:
             return reason, f"stuck: the leader moved {moved:.2f} m in the last {STUCK_SECONDS:g} s"
-        flown = float(np.linalg.norm(np.diff(pos, axis=0), axis=1).sum())
+        flown = float(_path_lengths(track)[0])
         return reason, (f"the step limit ({env.max_cycles} steps) ran out; the leader flew {flown:.1f} m, "
                         f"{flown / max(len(pos) - 1, 1) / dt:.2f} m/s on average")
     return reason, ""
